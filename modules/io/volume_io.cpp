@@ -1,0 +1,376 @@
+// ITK-facing translation unit: no system Eigen here (ENGINEERING.md).
+#include "io/volume_io.h"
+
+#include <itkGDCMImageIO.h>
+#include <itkGDCMImageIOFactory.h>
+#include <itkGDCMSeriesFileNames.h>
+#include <itkImage.h>
+#include <itkImageFileReader.h>
+#include <itkImageFileWriter.h>
+#include <itkImageSeriesReader.h>
+#include <itkImageSeriesWriter.h>
+#include <itkMetaDataObject.h>
+#include <itkMetaImageIOFactory.h>
+#include <itkNiftiImageIOFactory.h>
+#include <itkNrrdImageIOFactory.h>
+
+#include <gdcmUIDGenerator.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <mutex>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/sha256.h"
+
+namespace fs = std::filesystem;
+
+namespace ms::io {
+namespace {
+
+using FloatImage = itk::Image<float, 3>;
+using MaskImage = itk::Image<unsigned char, 3>;
+
+void register_factories() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    itk::GDCMImageIOFactory::RegisterOneFactory();
+    itk::NiftiImageIOFactory::RegisterOneFactory();
+    itk::NrrdImageIOFactory::RegisterOneFactory();
+    itk::MetaImageIOFactory::RegisterOneFactory();
+  });
+}
+
+std::string first_line(const std::string& s) {
+  std::string t = s.substr(0, s.find('\n'));
+  // ITK messages start with "file:line:\n" noise; keep the description part.
+  const auto pos = t.rfind(": ");
+  return pos == std::string::npos ? t : t.substr(pos + 2);
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+std::string trim(std::string s) {
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  while (!s.empty() && s.front() == ' ') s.erase(s.begin());
+  return s;
+}
+
+template <class ImageT>
+Geometry geometry_of(const ImageT* img) {
+  Geometry g;
+  const auto region = img->GetLargestPossibleRegion();
+  for (int a = 0; a < 3; ++a) {
+    g.size[a] = region.GetSize()[a];
+    g.spacing[a] = img->GetSpacing()[a];
+    g.origin[a] = img->GetOrigin()[a];
+  }
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) g.direction[3 * r + c] = img->GetDirection()(r, c);
+  return g;
+}
+
+template <class ImageT>
+void apply_geometry(ImageT* img, const Geometry& g) {
+  typename ImageT::RegionType region;
+  typename ImageT::SizeType size;
+  typename ImageT::SpacingType spacing;
+  typename ImageT::PointType origin;
+  typename ImageT::DirectionType dir;
+  for (int a = 0; a < 3; ++a) {
+    size[a] = g.size[a];
+    spacing[a] = g.spacing[a];
+    origin[a] = g.origin[a];
+  }
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) dir(r, c) = g.direction[3 * r + c];
+  region.SetSize(size);
+  img->SetRegions(region);
+  img->SetSpacing(spacing);
+  img->SetOrigin(origin);
+  img->SetDirection(dir);
+  img->Allocate();
+}
+
+std::string dict_string(const itk::MetaDataDictionary& d, const std::string& tag) {
+  std::string v;
+  itk::ExposeMetaData<std::string>(d, tag, v);
+  return trim(v);
+}
+
+std::string volume_kind(const std::string& path) {
+  const std::string l = lower(path);
+  auto ends = [&](const char* s) {
+    const std::string suf(s);
+    return l.size() >= suf.size() && l.compare(l.size() - suf.size(), suf.size(), suf) == 0;
+  };
+  if (ends(".nii") || ends(".nii.gz")) return "nifti";
+  if (ends(".nrrd") || ends(".nhdr")) return "nrrd";
+  if (ends(".mha") || ends(".mhd")) return "meta";
+  return "";
+}
+
+void finish(LoadedScan& scan, double hu_offset) {
+  auto& hu = scan.volume.hu;
+  std::size_t bad = 0;
+  for (float& v : hu) {
+    if (!std::isfinite(v)) ++bad;
+    v = static_cast<float>(v + hu_offset);
+  }
+  if (bad)
+    throw Error(ExitCode::InputInvalid,
+                scan.info.path + ": " + std::to_string(bad) + " voxels are NaN or infinite");
+  const auto& g = scan.volume.geom;
+  for (int a = 0; a < 3; ++a) {
+    if (g.size[a] < 4)
+      throw Error(ExitCode::InputInvalid, scan.info.path + ": volume is " + std::to_string(g.size[0]) + " x " +
+                                              std::to_string(g.size[1]) + " x " + std::to_string(g.size[2]) +
+                                              " voxels, too small to hold a mandible");
+    if (!(g.spacing[a] > 0) || !std::isfinite(g.spacing[a]))
+      throw Error(ExitCode::InputInvalid, scan.info.path + ": voxel spacing is not positive");
+  }
+  scan.info.pixel_sha256 = sha256_hex(hu.data(), hu.size() * sizeof(float));
+  // A CT in HU has air near -1000 and nothing far below it.
+  const auto [mn, mx] = std::minmax_element(hu.begin(), hu.end());
+  if (*mn > -500 || *mn < -3100)
+    scan.info.warnings.push_back("value range [" + std::to_string(static_cast<int>(*mn)) + ", " +
+                                 std::to_string(static_cast<int>(*mx)) +
+                                 "] does not look like CT in HU (air should be near -1000); check --hu-offset");
+}
+
+LoadedScan read_dicom_dir(const std::string& dir, const ReadOptions& opt) {
+  auto names = itk::GDCMSeriesFileNames::New();
+  names->SetRecursive(true);
+  names->SetUseSeriesDetails(false);
+  names->SetDirectory(dir);
+  const auto& uids = names->GetSeriesUIDs();
+  if (uids.empty()) throw Error(ExitCode::InputInvalid, dir + ": no DICOM image series found");
+
+  std::string chosen = opt.series_uid;
+  if (chosen.empty()) {
+    std::size_t best = 0;
+    for (const auto& uid : uids) {
+      const auto n = names->GetFileNames(uid).size();
+      if (n > best) {
+        best = n;
+        chosen = uid;
+      }
+    }
+  } else if (std::find(uids.begin(), uids.end(), chosen) == uids.end()) {
+    throw Error(ExitCode::InputInvalid, dir + ": series " + chosen + " not found");
+  }
+  const auto files = names->GetFileNames(chosen);
+  if (files.size() < 4)
+    throw Error(ExitCode::InputInvalid,
+                dir + ": series has " + std::to_string(files.size()) + " slice(s), a head CT needs many");
+
+  auto gdcm_io = itk::GDCMImageIO::New();
+  auto reader = itk::ImageSeriesReader<FloatImage>::New();
+  reader->SetImageIO(gdcm_io);
+  reader->SetFileNames(files);
+  try {
+    reader->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(ExitCode::InputInvalid, dir + ": cannot read DICOM series: " + first_line(e.GetDescription()));
+  }
+  LoadedScan scan;
+  scan.info.path = dir;
+  scan.info.kind = "dicom";
+  scan.info.file_count = files.size();
+  const auto& d = gdcm_io->GetMetaDataDictionary();
+  scan.info.series_uid = dict_string(d, "0020|000e");
+  scan.info.modality = dict_string(d, "0008|0060");
+  scan.info.study_date = dict_string(d, "0008|0020");
+  scan.info.manufacturer = dict_string(d, "0008|0070");
+  scan.info.model = dict_string(d, "0008|1090");
+  scan.info.kernel = dict_string(d, "0018|1210");
+  scan.info.series_description = dict_string(d, "0008|103e");
+  if (!scan.info.modality.empty() && scan.info.modality != "CT")
+    throw Error(ExitCode::InputInvalid, dir + ": series modality is " + scan.info.modality + ", expected CT");
+
+  FloatImage::Pointer img = reader->GetOutput();
+  scan.volume.geom = geometry_of(img.GetPointer());
+  scan.volume.hu.assign(img->GetBufferPointer(), img->GetBufferPointer() + scan.volume.geom.voxel_count());
+  return scan;
+}
+
+LoadedScan read_volume_file(const std::string& path, const std::string& kind) {
+  auto reader = itk::ImageFileReader<FloatImage>::New();
+  reader->SetFileName(path);
+  try {
+    reader->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + first_line(e.GetDescription()));
+  }
+  LoadedScan scan;
+  scan.info.path = path;
+  scan.info.kind = kind;
+  scan.info.file_count = 1;
+  FloatImage::Pointer img = reader->GetOutput();
+  scan.volume.geom = geometry_of(img.GetPointer());
+  scan.volume.hu.assign(img->GetBufferPointer(), img->GetBufferPointer() + scan.volume.geom.voxel_count());
+  return scan;
+}
+
+}  // namespace
+
+LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
+  register_factories();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file or directory");
+  LoadedScan scan;
+  if (fs::is_directory(path, ec)) {
+    scan = read_dicom_dir(path, options);
+  } else {
+    const std::string kind = volume_kind(path);
+    if (kind.empty())
+      throw Error(ExitCode::InputInvalid,
+                  path + ": not a DICOM folder nor a .nii/.nii.gz/.nrrd/.nhdr/.mha/.mhd volume");
+    scan = read_volume_file(path, kind);
+  }
+  finish(scan, options.hu_offset);
+  return scan;
+}
+
+void write_mask(const Mask& mask, const std::string& path) {
+  register_factories();
+  auto img = MaskImage::New();
+  apply_geometry(img.GetPointer(), mask.geom);
+  std::copy(mask.data.begin(), mask.data.end(), img->GetBufferPointer());
+  auto writer = itk::ImageFileWriter<MaskImage>::New();
+  writer->SetInput(img);
+  writer->SetFileName(path);
+  writer->UseCompressionOn();
+  try {
+    writer->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(ExitCode::OutputFailed, path + ": cannot write mask: " + first_line(e.GetDescription()));
+  }
+}
+
+Mask read_mask(const std::string& path) {
+  register_factories();
+  auto reader = itk::ImageFileReader<MaskImage>::New();
+  reader->SetFileName(path);
+  try {
+    reader->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(ExitCode::InputInvalid, path + ": cannot read mask: " + first_line(e.GetDescription()));
+  }
+  Mask m;
+  m.geom = geometry_of(reader->GetOutput());
+  const auto* buf = reader->GetOutput()->GetBufferPointer();
+  m.data.resize(m.geom.voxel_count());
+  for (std::size_t i = 0; i < m.data.size(); ++i) m.data[i] = buf[i] != 0;
+  return m;
+}
+
+std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, const std::string& dir) {
+  register_factories();
+  using SliceImage = itk::Image<short, 2>;
+  using ShortImage = itk::Image<short, 3>;
+  const Geometry& g = ct.geom;
+
+  auto img = ShortImage::New();
+  apply_geometry(img.GetPointer(), g);
+  short* buf = img->GetBufferPointer();
+  for (std::size_t i = 0; i < ct.hu.size(); ++i) {
+    const float v = std::round(ct.hu[i]);
+    buf[i] = static_cast<short>(std::clamp(v, -1024.0f, 30000.0f));
+  }
+
+  gdcm::UIDGenerator uidgen;
+  const std::string study_uid = spec.study_uid.empty() ? uidgen.Generate() : spec.study_uid;
+  const std::string series_uid = spec.series_uid.empty() ? uidgen.Generate() : spec.series_uid;
+  const std::string frame_uid = uidgen.Generate();
+
+  auto num = [](double v) {
+    std::ostringstream s;
+    s << std::setprecision(10) << v;
+    return s.str();
+  };
+  std::string iop;
+  for (int c = 0; c < 2; ++c)
+    for (int r = 0; r < 3; ++r) iop += (iop.empty() ? "" : "\\") + num(g.direction[3 * r + c]);
+
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw Error(ExitCode::OutputFailed, dir + ": cannot create folder: " + ec.message());
+
+  std::vector<itk::MetaDataDictionary> dicts(g.size[2]);
+  std::vector<itk::MetaDataDictionary*> dict_ptrs;
+  std::vector<std::string> files;
+  for (std::size_t k = 0; k < g.size[2]; ++k) {
+    auto& d = dicts[k];
+    auto set = [&](const char* tag, const std::string& v) { itk::EncapsulateMetaData<std::string>(d, tag, v); };
+    set("0008|0016", "1.2.840.10008.5.1.4.1.1.2");  // CT Image Storage
+    set("0008|0018", uidgen.Generate());
+    set("0008|0060", "CT");
+    set("0008|0008", "DERIVED\\SECONDARY\\AXIAL");
+    set("0008|0020", spec.study_date);
+    set("0008|0021", spec.study_date);
+    set("0008|0070", spec.manufacturer);
+    set("0008|1090", spec.model);
+    set("0008|1030", spec.study_description);
+    set("0008|103e", spec.series_description);
+    set("0010|0010", spec.patient_name);
+    set("0010|0020", spec.patient_id);
+    set("0010|0030", "");
+    set("0010|0040", "O");
+    set("0018|0050", num(g.spacing[2]));
+    set("0018|0088", num(g.spacing[2]));
+    set("0018|1210", spec.kernel);
+    set("0020|000d", study_uid);
+    set("0020|000e", series_uid);
+    set("0020|0052", frame_uid);
+    set("0020|0011", "1");
+    set("0020|0013", std::to_string(k + 1));
+    const Vec3 p = g.index_to_lps(0, 0, static_cast<double>(k));
+    set("0020|0032", num(p[0]) + "\\" + num(p[1]) + "\\" + num(p[2]));
+    set("0020|0037", iop);
+    set("0020|1041", num(dot(p, Vec3{g.direction[2], g.direction[5], g.direction[8]})));
+    set("0028|0030", num(g.spacing[1]) + "\\" + num(g.spacing[0]));  // row spacing \ column spacing
+    set("0028|1052", "-1024");
+    set("0028|1053", "1");
+    set("0028|1054", "HU");
+    set("0028|1050", "400");
+    set("0028|1051", "2000");
+    dict_ptrs.push_back(&d);
+    std::ostringstream name;
+    name << spec.file_prefix << std::setw(4) << std::setfill('0') << (k + 1) << ".dcm";
+    files.push_back((fs::path(dir) / name.str()).string());
+  }
+
+  auto gdcm_io = itk::GDCMImageIO::New();
+  gdcm_io->KeepOriginalUIDOn();
+  if (spec.compression != "raw") {
+    gdcm_io->UseCompressionOn();
+    if (spec.compression == "jpeg-lossless")
+      gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG);
+    else if (spec.compression == "jpeg2000")
+      gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG2000);
+    else if (spec.compression == "rle")
+      gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::RLE);
+    else
+      throw Error(ExitCode::Usage, "unknown DICOM compression '" + spec.compression + "'");
+  }
+  auto writer = itk::ImageSeriesWriter<ShortImage, SliceImage>::New();
+  writer->SetInput(img);
+  writer->SetImageIO(gdcm_io);
+  writer->SetFileNames(files);
+  writer->SetMetaDataDictionaryArray(&dict_ptrs);
+  try {
+    writer->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(ExitCode::OutputFailed, dir + ": cannot write DICOM series: " + first_line(e.GetDescription()));
+  }
+  return series_uid;
+}
+
+}  // namespace ms::io

@@ -1,0 +1,61 @@
+// Ingest and volume/mask writing (ITK + GDCM). Everything returned is in HU and
+// patient LPS millimetres; see METHOD.md §0.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+
+namespace ms::io {
+
+struct ReadOptions {
+  // Added to every voxel after the file's own rescale. Use for volume formats
+  // stored as HU + 1024 (e.g. --hu-offset -1024). DICOM is rescaled by its own
+  // RescaleSlope/Intercept and normally needs 0.
+  double hu_offset = 0.0;
+  // Pick this SeriesInstanceUID when a folder holds several series (empty:
+  // the series with the most slices among CT series).
+  std::string series_uid;
+};
+
+struct LoadedScan {
+  Volume volume;
+  ScanInfo info;
+};
+
+// Reads a DICOM folder (searched recursively) or a volume file (.nii, .nii.gz,
+// .nrrd, .nhdr, .mha, .mhd). Throws ms::Error (InputNotFound / InputInvalid)
+// with a one-line message naming the path.
+LoadedScan read_scan(const std::string& path, const ReadOptions& options = {});
+
+// Writes a uint8 mask as NIfTI (.nii or .nii.gz) on its own grid.
+void write_mask(const Mask& mask, const std::string& path);
+// Reads a mask (any ITK-readable format); voxels != 0 become 1.
+Mask read_mask(const std::string& path);
+
+// Identity written into every slice of a generated series.
+struct DicomSeriesSpec {
+  std::string patient_name = "ANONYMOUS^PHANTOM";
+  std::string patient_id = "PHANTOM";
+  std::string study_description = "MandiSym phantom";
+  std::string series_description = "MandiSym synthetic head CT";
+  std::string study_date = "20260101";
+  std::string manufacturer = "MandiSym";
+  std::string model = "phantom";
+  std::string kernel = "STANDARD";
+  std::string file_prefix = "IM";
+  // Empty: fresh UIDs are generated (GDCM UID generator).
+  std::string study_uid;
+  std::string series_uid;
+  // Transfer syntax: "raw" (explicit little endian) or "jpeg-lossless", "jpeg2000", "rle".
+  std::string compression = "raw";
+};
+
+// Writes a CT Image Storage series, one file per slice along the volume's k
+// axis, HU stored as uint16 with RescaleIntercept -1024 and slope 1, with
+// ImagePositionPatient/ImageOrientationPatient/PixelSpacing from the geometry.
+// Returns the SeriesInstanceUID written.
+std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, const std::string& dir);
+
+}  // namespace ms::io

@@ -1,0 +1,252 @@
+#include "phantom/phantom.h"
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include "phantom/anatomy.h"
+
+namespace ms::phantom {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+using Mat3 = std::array<double, 9>;  // row-major
+
+Mat3 mul(const Mat3& a, const Mat3& b) {
+  Mat3 c{};
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k)
+      for (int q = 0; q < 3; ++q) c[3 * r + q] += a[3 * r + k] * b[3 * k + q];
+  return c;
+}
+Vec3 apply(const Mat3& m, const Vec3& v) {
+  return {m[0] * v[0] + m[1] * v[1] + m[2] * v[2], m[3] * v[0] + m[4] * v[1] + m[5] * v[2],
+          m[6] * v[0] + m[7] * v[1] + m[8] * v[2]};
+}
+Vec3 apply_t(const Mat3& m, const Vec3& v) {
+  return {m[0] * v[0] + m[3] * v[1] + m[6] * v[2], m[1] * v[0] + m[4] * v[1] + m[7] * v[2],
+          m[2] * v[0] + m[5] * v[1] + m[8] * v[2]};
+}
+
+// R = Rz(yaw) Rx(pitch) Ry(roll), angles in degrees, right-handed about LPS axes.
+Mat3 rotation(double yaw, double pitch, double roll) {
+  const double cy = std::cos(yaw * kDeg), sy = std::sin(yaw * kDeg);
+  const double cp = std::cos(pitch * kDeg), sp = std::sin(pitch * kDeg);
+  const double cr = std::cos(roll * kDeg), sr = std::sin(roll * kDeg);
+  const Mat3 rz{cy, -sy, 0, sy, cy, 0, 0, 0, 1};
+  const Mat3 rx{1, 0, 0, 0, cp, -sp, 0, sp, cp};
+  const Mat3 ry{cr, 0, sr, 0, 1, 0, -sr, 0, cr};
+  return mul(rz, mul(rx, ry));
+}
+
+// Centre of the jaw region in the head frame: the pose pivots about it and
+// the grid is centred on it.
+const Vec3 kPivot{0, -30, -38};
+
+void check(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("phantom: invalid parameter " + what);
+}
+
+// Separable Gaussian blur, sigma in voxels per axis.
+void gaussian_blur(std::vector<float>& v, const Geometry& g, const Vec3& sigma_vox) {
+  for (int axis = 0; axis < 3; ++axis) {
+    const double s = sigma_vox[axis];
+    if (s < 0.05) continue;
+    const int rad = static_cast<int>(std::ceil(3.0 * s));
+    std::vector<double> k(2 * rad + 1);
+    double sum = 0;
+    for (int i = -rad; i <= rad; ++i) sum += k[i + rad] = std::exp(-0.5 * i * i / (s * s));
+    for (auto& x : k) x /= sum;
+    const long nx = g.size[0], ny = g.size[1], nz = g.size[2];
+    const long n_axis = axis == 0 ? nx : axis == 1 ? ny : nz;
+    const long stride = axis == 0 ? 1 : axis == 1 ? nx : nx * ny;
+    const long lines = nx * ny * nz / n_axis;
+#pragma omp parallel for schedule(static)
+    for (long line = 0; line < lines; ++line) {
+      long start;
+      if (axis == 0) start = line * nx;
+      else if (axis == 1) start = (line / nx) * nx * ny + (line % nx);
+      else start = line;
+      std::vector<double> src(n_axis);
+      for (long i = 0; i < n_axis; ++i) src[i] = v[start + i * stride];
+      for (long i = 0; i < n_axis; ++i) {
+        double acc = 0;
+        for (int j = -rad; j <= rad; ++j) {
+          const long q = std::min(std::max(i + j, 0L), n_axis - 1);
+          acc += k[j + rad] * src[q];
+        }
+        v[start + i * stride] = static_cast<float>(acc);
+      }
+    }
+  }
+}
+
+// Standard normal deviates from a 64-bit Mersenne Twister via Box-Muller: the
+// same numbers on every platform (std::normal_distribution is not portable).
+class Normal {
+ public:
+  explicit Normal(std::uint64_t seed) : rng_(seed) {}
+  double operator()() {
+    if (has_) {
+      has_ = false;
+      return spare_;
+    }
+    double u1 = 0;
+    do u1 = static_cast<double>(rng_() >> 11) * (1.0 / 9007199254740992.0);
+    while (u1 <= 0.0);
+    const double u2 = static_cast<double>(rng_() >> 11) * (1.0 / 9007199254740992.0);
+    const double r = std::sqrt(-2.0 * std::log(u1));
+    spare_ = r * std::sin(2 * 3.14159265358979323846 * u2);
+    has_ = true;
+    return r * std::cos(2 * 3.14159265358979323846 * u2);
+  }
+
+ private:
+  std::mt19937_64 rng_;
+  double spare_ = 0;
+  bool has_ = false;
+};
+
+}  // namespace
+
+Phantom generate(const PhantomParams& params) {
+  const PhantomParams& P = params;
+  for (int a = 0; a < 3; ++a) {
+    check(P.spacing[a] >= 0.1 && P.spacing[a] <= 6.0, "spacing (0.1..6 mm)");
+    check(P.fov_mm[a] >= 40 && P.fov_mm[a] <= 400, "fov_mm (40..400 mm)");
+  }
+  check(P.noise_hu >= 0 && P.noise_hu <= 500, "noise_hu (0..500)");
+  check(P.blur_mm >= 0 && P.blur_mm <= 5, "blur_mm (0..5)");
+  check(P.occlusal_gap_mm >= 0 && P.occlusal_gap_mm <= 10, "occlusal_gap_mm (0..10)");
+  check(P.joint_space_mm >= 0 && P.joint_space_mm <= 8, "joint_space_mm (0..8)");
+  for (const auto& s : P.side) {
+    check(std::abs(s.ramus_height_mm) <= 15, "ramus height asymmetry (|x| <= 15 mm)");
+    check(std::abs(s.body_length_mm) <= 15, "body length asymmetry (|x| <= 15 mm)");
+    check(std::abs(s.gonial_angle_deg) <= 15, "gonial angle asymmetry (|x| <= 15 deg)");
+    check(s.condyle_size_mm >= -6 && s.condyle_size_mm <= 10, "condyle size asymmetry (-6..10 mm)");
+  }
+  check(std::abs(P.chin_deviation_mm) <= 15, "chin deviation (|x| <= 15 mm)");
+  check(std::abs(P.yaw_deg) <= 45 && std::abs(P.pitch_deg) <= 45 && std::abs(P.roll_deg) <= 45, "pose (|angle| <= 45 deg)");
+
+  const Anatomy anat(P);
+  const Mat3 R = rotation(P.yaw_deg, P.pitch_deg, P.roll_deg);
+  auto to_lps = [&](const Vec3& h) { return apply(R, h - kPivot) + P.shift_mm; };
+  auto to_head = [&](const Vec3& l) { return apply_t(R, l - P.shift_mm) + kPivot; };
+
+  Phantom out;
+  out.params = P;
+  Geometry& g = out.ct.geom;
+  for (int a = 0; a < 3; ++a) {
+    g.size[a] = static_cast<std::size_t>(std::lround(P.fov_mm[a] / P.spacing[a]));
+    g.spacing[a] = P.spacing[a];
+    g.origin[a] = -0.5 * (g.size[a] - 1) * P.spacing[a];  // grid centred on LPS 0
+  }
+  const std::size_t n = g.voxel_count();
+  out.ct.hu.assign(n, -1000.0f);
+  out.mandible.geom = g;
+  out.mandible.data.assign(n, 0);
+  const double w = (P.spacing[0] + P.spacing[1] + P.spacing[2]) / 3.0;
+
+  const long nz = static_cast<long>(g.size[2]);
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        const Vec3 h = to_head(g.index_to_lps(i, j, k));
+        const std::size_t idx = g.linear(i, j, k);
+        out.ct.hu[idx] = static_cast<float>(anat.hu(h, w));
+        out.mandible.data[idx] = anat.mandible(h) < 0 ? 1 : 0;
+      }
+
+  // Metal streaks: in every axial slice through a filling, alternating
+  // bright/dark rays around each filling and a dark band between two fillings
+  // (beam hardening / photon starvation), decaying with distance.
+  const auto& metal = anat.metal_centers();
+  if (!metal.empty()) {
+    std::vector<Vec3> mc;
+    for (const auto& m : metal) mc.push_back(to_lps(m));
+    std::mt19937_64 rng(P.seed * 7919 + 17);
+    std::vector<double> phase;
+    for (std::size_t m = 0; m < mc.size(); ++m) phase.push_back(static_cast<double>(rng() % 6283) / 1000.0);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long k = 0; k < nz; ++k)
+      for (std::size_t j = 0; j < g.size[1]; ++j)
+        for (std::size_t i = 0; i < g.size[0]; ++i) {
+          const Vec3 p = g.index_to_lps(i, j, k);
+          double add = 0;
+          for (std::size_t m = 0; m < mc.size(); ++m) {
+            const double dz = std::abs(p[2] - mc[m][2]);
+            if (dz > 3.0) continue;
+            const double fz = 1.0 - dz / 3.0;
+            const double dx = p[0] - mc[m][0], dy = p[1] - mc[m][1];
+            const double r = std::hypot(dx, dy);
+            if (r < 3.0) continue;
+            add += fz * 450.0 * std::exp(-r / 35.0) * std::cos(14.0 * std::atan2(dy, dx) + phase[m]);
+            for (std::size_t q = m + 1; q < mc.size(); ++q) {
+              // distance from p to the segment between the two fillings, in-plane
+              const double ex = mc[q][0] - mc[m][0], ey = mc[q][1] - mc[m][1];
+              const double t = std::clamp((dx * ex + dy * ey) / (ex * ex + ey * ey), 0.0, 1.0);
+              const double d = std::hypot(dx - t * ex, dy - t * ey);
+              add -= fz * 700.0 * std::exp(-0.5 * d * d / 9.0);
+            }
+          }
+          out.ct.hu[g.linear(i, j, k)] += static_cast<float>(add);
+        }
+  }
+
+  if (P.blur_mm > 0)
+    gaussian_blur(out.ct.hu, g, {P.blur_mm / P.spacing[0], P.blur_mm / P.spacing[1], P.blur_mm / P.spacing[2]});
+
+  if (P.noise_hu > 0) {
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < nz; ++k) {
+      Normal normal(P.seed * 1000003ULL + static_cast<std::uint64_t>(k));
+      const std::size_t base = g.linear(0, 0, k);
+      for (std::size_t q = 0; q < g.size[0] * g.size[1]; ++q)
+        out.ct.hu[base + q] += static_cast<float>(P.noise_hu * normal());
+    }
+  }
+
+  // Ground truth in LPS.
+  for (const auto& [name, p] : anat.landmarks().points) out.landmarks.set(name, to_lps(p));
+  out.plane.point = to_lps(Vec3{0, 0, 0});
+  out.plane.normal = apply(R, Vec3{1, 0, 0});
+  out.truth.side = P.side;
+  out.truth.chin_deviation_mm = P.chin_deviation_mm;
+
+  if (P.mirror) {
+    // Mirror the finished volume through the grid's mid-sagittal plane (the
+    // grid axis i runs along LPS x): voxels flip along i, L/R labels swap.
+    const double xc = g.index_to_lps(0.5 * (g.size[0] - 1), 0, 0)[0];
+    for (std::size_t k = 0; k < g.size[2]; ++k)
+      for (std::size_t j = 0; j < g.size[1]; ++j) {
+        const std::size_t b = g.linear(0, j, k);
+        std::reverse(out.ct.hu.begin() + b, out.ct.hu.begin() + b + g.size[0]);
+        std::reverse(out.mandible.data.begin() + b, out.mandible.data.begin() + b + g.size[0]);
+      }
+    auto refl = [&](Vec3 p) {
+      p[0] = 2 * xc - p[0];
+      return p;
+    };
+    LandmarkSet m;
+    for (const auto& [name, p] : out.landmarks.points) m.set(mirror_label(name), refl(p));
+    out.landmarks = m;
+    out.plane.point = refl(out.plane.point);
+    out.plane.normal = {out.plane.normal[0], -out.plane.normal[1], -out.plane.normal[2]};
+    std::swap(out.truth.side[0], out.truth.side[1]);
+    out.truth.chin_deviation_mm = -out.truth.chin_deviation_mm;
+  }
+  auto dist = [&](const char* a, const char* b) {
+    const Vec3 *pa = out.landmarks.find(a), *pb = out.landmarks.find(b);
+    return pa && pb ? distance(*pa, *pb) : 0.0;
+  };
+  out.truth.ramus_height_L = dist("Co_L", "Go_L");
+  out.truth.ramus_height_R = dist("Co_R", "Go_R");
+  out.truth.body_length_L = dist("Go_L", "Me");
+  out.truth.body_length_R = dist("Go_R", "Me");
+  return out;
+}
+
+}  // namespace ms::phantom
