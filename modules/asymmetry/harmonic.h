@@ -1,0 +1,37 @@
+// Harmonic fields on a triangle mesh (METHOD.md §3), Eigen sparse Cholesky.
+// Shape after geometry-central's solvers: build once per mesh, factorise once
+// per Dirichlet constraint set, reuse for every solve with that set.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/types.h"
+
+namespace ms::asymmetry {
+
+class HarmonicFieldSolver {
+ public:
+  // disk_radius_mm: Dirichlet disks are the vertices within this Euclidean
+  // distance of a landmark (at least its nearest vertex), so the field does not
+  // depend on mesh resolution.
+  explicit HarmonicFieldSolver(const Mesh& mesh, double disk_radius_mm = 2.0);
+  ~HarmonicFieldSolver();
+  HarmonicFieldSolver(const HarmonicFieldSolver&) = delete;
+  HarmonicFieldSolver& operator=(const HarmonicFieldSolver&) = delete;
+
+  // u = 0 on the disk around a, u = 1 on the disk around b, L u = 0 elsewhere.
+  // Throws std::invalid_argument if the two disks overlap.
+  std::vector<double> solve(const Vec3& a, const Vec3& b);
+  std::vector<int> disk(const Vec3& p) const;
+  std::size_t factorisations() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Per-face gradient of a piecewise-linear field: (1/2A) Σ u_i (n × e_i).
+std::vector<Vec3> face_gradients(const Mesh& mesh, const std::vector<double>& u);
+
+}  // namespace ms::asymmetry

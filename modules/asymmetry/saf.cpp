@@ -1,0 +1,155 @@
+#include "asymmetry/saf.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "asymmetry/harmonic.h"
+#include "geometry/mesh_geometry.h"
+
+namespace ms::asymmetry {
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}
+
+double wrap_angle(double a) {
+  a = std::fmod(a + kPi, 2 * kPi);
+  if (a <= 0) a += 2 * kPi;
+  return a - kPi;
+}
+
+const std::vector<Configuration>& default_configurations() {
+  static const std::vector<Configuration> c = {
+      {"Co-Me|Cr-Go", "Co_L", "Me", "Cr_L", "Go_L"},
+      {"Co-Go|Cr-Pog", "Co_L", "Go_L", "Cr_L", "Pog"},
+      {"Go-Me|Co-Cr", "Go_L", "Me", "Co_L", "Cr_L"},
+      {"Co-Pog|Go-Me", "Co_L", "Pog", "Go_L", "Me"},
+  };
+  return c;
+}
+
+Configuration mirrored(const Configuration& c) {
+  return {c.name, mirror_label(c.a), mirror_label(c.b), mirror_label(c.c), mirror_label(c.d)};
+}
+
+std::vector<double> signed_angle_field(const Mesh& mesh, const std::vector<Vec3>& g1, const std::vector<Vec3>& g2,
+                                       double ratio) {
+  const auto fn = geometry::face_normals(mesh);
+  auto median_norm = [](const std::vector<Vec3>& g) {
+    std::vector<double> n;
+    n.reserve(g.size());
+    for (const auto& v : g) n.push_back(norm(v));
+    std::nth_element(n.begin(), n.begin() + n.size() / 2, n.end());
+    return n[n.size() / 2];
+  };
+  const double t1 = ratio * median_norm(g1), t2 = ratio * median_norm(g2);
+  std::vector<double> th(mesh.faces.size(), std::nan(""));
+  for (std::size_t f = 0; f < th.size(); ++f) {
+    if (norm(g1[f]) <= t1 || norm(g2[f]) <= t2 || norm(fn[f]) == 0) continue;
+    th[f] = std::atan2(dot(fn[f], cross(g1[f], g2[f])), dot(g1[f], g2[f]));
+  }
+  return th;
+}
+
+SafResult compute_saf(const Mesh& mesh, const LandmarkSet& lm, const Plane& plane, const SafOptions& opt) {
+  SafResult r;
+  const std::size_t nf = mesh.faces.size();
+  HarmonicFieldSolver solver(mesh, opt.disk_radius_mm);
+  std::map<std::pair<std::string, std::string>, std::vector<Vec3>> grads;
+  auto gradient = [&](const std::string& a, const std::string& b) -> const std::vector<Vec3>& {
+    auto& g = grads[{a, b}];
+    if (g.empty()) g = face_gradients(mesh, solver.solve(*lm.find(a), *lm.find(b)));
+    return g;
+  };
+  auto theta = [&](const Configuration& c) {
+    return signed_angle_field(mesh, gradient(c.a, c.b), gradient(c.c, c.d), opt.min_gradient_ratio);
+  };
+
+  // Mirror correspondence σ(f): face containing the closest surface point to
+  // the reflected face centroid.
+  const geometry::ClosestPointIndex index(mesh);
+  std::vector<int> sigma(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const auto& t = mesh.faces[f];
+    const Vec3 c = (1.0 / 3.0) * (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]);
+    sigma[f] = index.closest(plane.reflect(c)).face;
+  }
+  const auto area = geometry::face_areas(mesh);
+  std::vector<double> face_sum(nf, 0.0);
+  std::vector<int> face_cnt(nf, 0);
+  double score_sum = 0, free_sum = 0;
+  int used = 0;
+  for (const auto& c : opt.configurations) {
+    const Configuration m = mirrored(c);
+    bool ok = true;
+    for (const auto* n : {&c.a, &c.b, &c.c, &c.d, &m.a, &m.b, &m.c, &m.d}) ok = ok && lm.has(*n);
+    if (!ok) {
+      r.skipped.push_back(c.name);
+      continue;
+    }
+    std::vector<double> tc, tm;
+    try {
+      tc = theta(c);
+      tm = theta(m);
+    } catch (const std::exception&) {
+      r.skipped.push_back(c.name);
+      continue;
+    }
+    double num = 0, den = 0;
+    for (std::size_t f = 0; f < nf; ++f) {
+      const std::size_t g = static_cast<std::size_t>(sigma[f]);
+      if (std::isnan(tc[f]) || std::isnan(tm[f]) || std::isnan(tc[g]) || std::isnan(tm[g])) continue;
+      const double a = 0.5 * (std::abs(wrap_angle(tc[f] + tm[g])) + std::abs(wrap_angle(tm[f] + tc[g])));
+      num += area[f] * a;
+      den += area[f];
+      face_sum[f] += a;
+      face_cnt[f] += 1;
+    }
+    const double s = den > 0 ? num / den : 0.0;
+    r.per_configuration[c.name] = s;
+    score_sum += s;
+    // Correspondence-free: circular W1 between the area-weighted distributions
+    // of θ_C and -θ_σ(C) (360 bins).
+    const int B = 360;
+    std::vector<double> h1(B, 0.0), h2(B, 0.0);
+    double w1 = 0, w2 = 0;
+    auto bin = [&](double a) { return std::min(B - 1, static_cast<int>((a + kPi) / (2 * kPi) * B)); };
+    for (std::size_t f = 0; f < nf; ++f) {
+      if (!std::isnan(tc[f])) h1[bin(tc[f])] += area[f], w1 += area[f];
+      if (!std::isnan(tm[f])) h2[bin(wrap_angle(-tm[f]))] += area[f], w2 += area[f];
+    }
+    std::vector<double> diff(B);
+    double c1 = 0, c2 = 0;
+    for (int b = 0; b < B; ++b) {
+      c1 += h1[b] / w1;
+      c2 += h2[b] / w2;
+      diff[b] = c1 - c2;
+    }
+    std::vector<double> sorted = diff;
+    std::nth_element(sorted.begin(), sorted.begin() + B / 2, sorted.end());
+    const double med = sorted[B / 2];
+    double w = 0;
+    for (int b = 0; b < B; ++b) w += std::abs(diff[b] - med) * (2 * kPi / B);
+    free_sum += w;
+    ++used;
+  }
+  r.factorisations = solver.factorisations();
+  if (used == 0) return r;
+  r.score = score_sum / used;
+  r.correspondence_free = free_sum / used;
+  // SAF map: per-vertex area-weighted mean of the per-face values.
+  std::vector<double> vs(mesh.vertices.size(), 0.0), vw(mesh.vertices.size(), 0.0);
+  for (std::size_t f = 0; f < nf; ++f) {
+    if (face_cnt[f] == 0) continue;
+    const double a = face_sum[f] / face_cnt[f];
+    for (int k = 0; k < 3; ++k) {
+      vs[mesh.faces[f][k]] += area[f] * a;
+      vw[mesh.faces[f][k]] += area[f];
+    }
+  }
+  r.per_vertex.resize(vs.size());
+  for (std::size_t i = 0; i < vs.size(); ++i) r.per_vertex[i] = vw[i] > 0 ? vs[i] / vw[i] : 0.0;
+  return r;
+}
+
+}  // namespace ms::asymmetry

@@ -1,0 +1,47 @@
+// Signed Angle Field and the SAF asymmetry scores (METHOD.md §3, §4.1-4.3).
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+
+namespace ms::asymmetry {
+
+// C = ((a, b), (c, d)): the angle between ∇u_ab and ∇u_cd.
+struct Configuration {
+  std::string name;
+  std::string a, b, c, d;
+};
+// The documented set of left configurations (docs/method.md), each mixing
+// condyle, coronoid, angle and chin landmarks.
+const std::vector<Configuration>& default_configurations();
+Configuration mirrored(const Configuration& c);  // label mirror σ
+
+struct SafOptions {
+  double disk_radius_mm = 2.0;
+  double min_gradient_ratio = 1e-3;  // faces with |∇u| below this × median are masked
+  std::vector<Configuration> configurations = default_configurations();
+};
+
+struct SafResult {
+  double score = -1;                       // §4.1, radians; -1 if not computed
+  double correspondence_free = -1;         // §4.3, radians
+  std::map<std::string, double> per_configuration;
+  std::vector<double> per_vertex;          // SAF map (§4.2), radians
+  std::vector<std::string> skipped;        // configurations with missing landmarks
+  std::size_t factorisations = 0;
+};
+
+// θ_C per face, in (-π, π]; NaN where masked.
+std::vector<double> signed_angle_field(const Mesh& mesh, const std::vector<Vec3>& g1, const std::vector<Vec3>& g2,
+                                       double min_gradient_ratio = 1e-3);
+
+// Needs a closed outward mesh, landmarks and the fitted symmetry plane.
+SafResult compute_saf(const Mesh& mesh, const LandmarkSet& landmarks, const Plane& plane, const SafOptions& options = {});
+
+// Wrap an angle to (-π, π].
+double wrap_angle(double a);
+
+}  // namespace ms::asymmetry

@@ -1,0 +1,223 @@
+#include "reference/reference.h"
+
+#include <ceres/ceres.h>
+
+#include <cmath>
+
+#include "core/error.h"
+#include "geometry/mesh_geometry.h"
+
+namespace ms::reference {
+namespace {
+
+template <class T>
+void reflect(const T* n, const T* d, const T* q, T* out) {
+  const T s = n[0] * q[0] + n[1] * q[1] + n[2] * q[2] - d[0];
+  for (int a = 0; a < 3; ++a) out[a] = q[a] - T(2) * s * n[a];
+}
+
+// Left landmark = q; right landmark = reflection of q.
+struct PairResidual {
+  Vec3 left, right;
+  template <class T>
+  bool operator()(const T* n, const T* d, const T* q, T* r) const {
+    T rq[3];
+    reflect(n, d, q, rq);
+    for (int a = 0; a < 3; ++a) {
+      r[a] = q[a] - T(left[a]);
+      r[3 + a] = rq[a] - T(right[a]);
+    }
+    return true;
+  }
+};
+
+// Midline landmark = projection of m onto the plane.
+struct MidResidual {
+  Vec3 p;
+  template <class T>
+  bool operator()(const T* n, const T* d, const T* m, T* r) const {
+    const T s = n[0] * m[0] + n[1] * m[1] + n[2] * m[2] - d[0];
+    for (int a = 0; a < 3; ++a) r[a] = m[a] - s * n[a] - T(p[a]);
+    return true;
+  }
+};
+
+// Reflected vertex to the tangent plane of its closest surface point.
+struct MirrorResidual {
+  Vec3 v, c, nc;
+  template <class T>
+  bool operator()(const T* n, const T* d, T* r) const {
+    T q[3] = {T(v[0]), T(v[1]), T(v[2])}, rq[3];
+    reflect(n, d, q, rq);
+    r[0] = (rq[0] - T(c[0])) * T(nc[0]) + (rq[1] - T(c[1])) * T(nc[1]) + (rq[2] - T(c[2])) * T(nc[2]);
+    return true;
+  }
+};
+
+const char* kPairs[3] = {"Co", "Cr", "Go"};
+const char* kMid[2] = {"Me", "Pog"};
+
+}  // namespace
+
+void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si) {
+  e_ml = normalized(plane.normal);
+  Vec3 up{0, 0, 1};
+  if (std::abs(dot(up, e_ml)) > 0.9) up = {0, 1, 0};
+  e_si = normalized(up - dot(up, e_ml) * e_ml);
+  e_ap = cross(e_si, e_ml);
+}
+
+Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
+  // ---- initial plane from the pairs ----
+  Vec3 nsum{0, 0, 0};
+  int pairs = 0;
+  for (const char* p : kPairs) {
+    const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
+    if (l && r) {
+      nsum = nsum + (*l - *r);
+      ++pairs;
+    }
+  }
+  if (pairs == 0 || norm(nsum) < 1e-6)
+    throw Error(ExitCode::GeometryFailed, "symmetry plane: no bilateral landmark pair was found");
+  double n[3], d[1];
+  {
+    const Vec3 n0 = normalized(nsum);
+    double acc = 0;
+    int cnt = 0;
+    for (const char* p : kPairs) {
+      const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
+      if (l && r) acc += dot(n0, 0.5 * (*l + *r)), ++cnt;
+    }
+    for (const char* m : kMid)
+      if (const Vec3* q = det.find(m)) acc += dot(n0, *q), ++cnt;
+    for (int a = 0; a < 3; ++a) n[a] = n0[a];
+    d[0] = acc / cnt;
+  }
+
+  // ---- stage 1: landmarks vs symmetric configuration ----
+  std::vector<std::array<double, 3>> q_pair, q_mid;
+  std::vector<std::string> pair_names, mid_names;
+  ceres::Problem problem;
+  problem.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
+  problem.AddParameterBlock(d, 1);
+  q_pair.reserve(3);
+  q_mid.reserve(2);
+  for (const char* p : kPairs) {
+    const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
+    if (!l || !r) continue;
+    Plane pl{Vec3{0, 0, 0}, Vec3{n[0], n[1], n[2]}};
+    pl.point = d[0] * pl.normal;
+    const Vec3 init = 0.5 * (*l + pl.reflect(*r));
+    q_pair.push_back({init[0], init[1], init[2]});
+    pair_names.push_back(p);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PairResidual, 6, 3, 1, 3>(new PairResidual{*l, *r}),
+                             new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_pair.back().data());
+  }
+  for (const char* m : kMid) {
+    const Vec3* q = det.find(m);
+    if (!q) continue;
+    q_mid.push_back({(*q)[0], (*q)[1], (*q)[2]});
+    mid_names.push_back(m);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<MidResidual, 3, 3, 1, 3>(new MidResidual{*q}),
+                             new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_mid.back().data());
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = 100;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+
+  Result res;
+  auto current_plane = [&] {
+    Plane pl;
+    pl.normal = normalized(Vec3{n[0], n[1], n[2]});
+    pl.point = d[0] * pl.normal;
+    return pl;
+  };
+
+  // ---- stage 2: mirror-ICP on the surface ----
+  if (opt.refine_on_surface && surface && surface->faces.size() > 100) {
+    const geometry::ClosestPointIndex index(*surface);
+    const auto fn = geometry::face_normals(*surface);
+    const std::size_t step = std::max<std::size_t>(1, surface->vertices.size() / opt.icp_samples);
+    double rms = 0;
+    for (int round = 0; round < opt.icp_rounds; ++round) {
+      const Plane pl = current_plane();
+      ceres::Problem icp;
+      icp.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
+      icp.AddParameterBlock(d, 1);
+      for (std::size_t i = 0; i < surface->vertices.size(); i += step) {
+        const Vec3& v = surface->vertices[i];
+        const auto hit = index.closest(pl.reflect(v));
+        icp.AddResidualBlock(new ceres::AutoDiffCostFunction<MirrorResidual, 1, 3, 1>(
+                                 new MirrorResidual{v, hit.point, fn[static_cast<std::size_t>(hit.face)]}),
+                             new ceres::HuberLoss(opt.icp_huber_mm), n, d);
+      }
+      ceres::Solver::Options io;
+      io.linear_solver_type = ceres::DENSE_QR;
+      io.max_num_iterations = 30;
+      io.logging_type = ceres::SILENT;
+      ceres::Solver::Summary s;
+      ceres::Solve(io, &icp, &s);
+      rms = std::sqrt(2.0 * s.final_cost / std::max(1, s.num_residual_blocks));
+      const Plane np = current_plane();
+      const double moved = std::acos(std::min(1.0, std::abs(dot(np.normal, pl.normal)))) * 180 / 3.14159265358979 +
+                           std::abs(np.signed_distance(pl.point));
+      if (moved < 1e-3) break;
+    }
+    res.surface_rms_mm = rms;
+    // Re-solve the symmetric configuration for the refined plane (plane fixed).
+    ceres::Problem cfg;
+    for (std::size_t i = 0; i < q_pair.size(); ++i) {
+      const Vec3 *l = det.find(pair_names[i] + "_L"), *r = det.find(pair_names[i] + "_R");
+      cfg.AddResidualBlock(new ceres::AutoDiffCostFunction<PairResidual, 6, 3, 1, 3>(new PairResidual{*l, *r}),
+                           new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_pair[i].data());
+    }
+    for (std::size_t i = 0; i < q_mid.size(); ++i)
+      cfg.AddResidualBlock(new ceres::AutoDiffCostFunction<MidResidual, 3, 3, 1, 3>(new MidResidual{*det.find(mid_names[i])}),
+                           new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_mid[i].data());
+    cfg.SetParameterBlockConstant(n);
+    cfg.SetParameterBlockConstant(d);
+    ceres::Solve(so, &cfg, &summary);
+  }
+
+  res.plane = current_plane();
+  if (res.plane.normal[0] < 0) res.plane.normal = -1.0 * res.plane.normal;  // point to patient left
+  // Plane point: projection of the landmark centroid onto the plane.
+  {
+    Vec3 c{0, 0, 0};
+    int cnt = 0;
+    for (const auto& [name, p] : det.points) c = c + p, ++cnt;
+    c = (1.0 / cnt) * c;
+    const Plane pl = current_plane();
+    res.plane.point = c - pl.signed_distance(c) * pl.normal;
+  }
+  // Reference configuration and residuals.
+  const Plane pl = current_plane();
+  double ss = 0;
+  int cnt = 0;
+  for (std::size_t i = 0; i < q_pair.size(); ++i) {
+    const Vec3 q{q_pair[i][0], q_pair[i][1], q_pair[i][2]};
+    res.reference.set(pair_names[i] + "_L", q);
+    res.reference.set(pair_names[i] + "_R", pl.reflect(q));
+  }
+  for (std::size_t i = 0; i < q_mid.size(); ++i) {
+    const Vec3 m{q_mid[i][0], q_mid[i][1], q_mid[i][2]};
+    res.reference.set(mid_names[i], m - pl.signed_distance(m) * pl.normal);
+  }
+  Vec3 e_ml, e_ap, e_si;
+  plane_frame(res.plane, e_ml, e_ap, e_si);
+  for (const auto& [name, ref] : res.reference.points) {
+    const Vec3 dv = *det.find(name) - ref;
+    ss += dot(dv, dv);
+    ++cnt;
+    res.asymmetry_vectors[name] = {dot(dv, e_ml), dot(dv, e_ap), dot(dv, e_si)};
+  }
+  res.rms_landmark_residual_mm = cnt ? std::sqrt(ss / cnt) : 0.0;
+  if (pairs < 2) res.warnings.push_back("symmetry plane from a single bilateral landmark pair");
+  return res;
+}
+
+}  // namespace ms::reference

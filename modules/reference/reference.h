@@ -1,0 +1,43 @@
+// Symmetry plane and symmetric reference configuration (METHOD.md §5), Ceres.
+// Stage 1: robust least squares between the detected landmarks and a
+// configuration that is exactly symmetric about the plane (one free point per
+// bilateral pair, its partner its reflection; midline points on the plane).
+// Stage 2: mirror-ICP on the surface: reflected vertices to the surface,
+// point-to-plane residuals, Huber loss, a few correspondence rounds.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+
+namespace ms::reference {
+
+struct Options {
+  double landmark_huber_mm = 2.0;   // Huber scale of the landmark residuals
+  bool refine_on_surface = true;    // run mirror-ICP after the landmark fit
+  int icp_rounds = 5;
+  std::size_t icp_samples = 4000;   // surface vertices used per round
+  double icp_huber_mm = 1.0;
+};
+
+struct Result {
+  Plane plane;                          // normal points to the patient's left
+  LandmarkSet reference;                // symmetric reference configuration
+  double rms_landmark_residual_mm = 0;  // detected vs reference
+  double surface_rms_mm = -1;           // mirror-ICP point-to-plane RMS (-1: not run)
+  // detected - reference, in the plane frame: {medio-lateral (+left),
+  // antero-posterior (+posterior), supero-inferior (+superior)}
+  std::map<std::string, Vec3> asymmetry_vectors;
+  std::vector<std::string> warnings;
+};
+
+// Needs at least one bilateral pair; throws ms::Error(GeometryFailed) otherwise.
+Result fit(const LandmarkSet& detected, const Mesh* surface, const Options& options = {});
+
+// Orthonormal frame of a symmetry plane: e_ml = normal, e_si = superior
+// projected into the plane, e_ap = e_si x e_ml (posterior).
+void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si);
+
+}  // namespace ms::reference

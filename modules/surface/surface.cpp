@@ -1,0 +1,219 @@
+#include "surface/surface.h"
+
+#include <vtkCellArray.h>
+#include <vtkCleanPolyData.h>
+#include <vtkDoubleArray.h>
+#include <vtkFlyingEdges3D.h>
+#include <vtkImageData.h>
+#include <vtkImageGaussianSmooth.h>
+#include <vtkIntArray.h>
+#include <vtkPLYWriter.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataConnectivityFilter.h>
+#include <vtkQuadricDecimation.h>
+#include <vtkSTLWriter.h>
+#include <vtkSmartPointer.h>
+#include <vtkTriangleFilter.h>
+#include <vtkXMLPolyDataReader.h>
+#include <vtkXMLPolyDataWriter.h>
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "core/error.h"
+
+namespace ms::surface {
+namespace {
+
+template <class T>
+using Ptr = vtkSmartPointer<T>;
+
+vtkSmartPointer<vtkPolyData> to_vtk(const Mesh& m) {
+  auto pts = Ptr<vtkPoints>::New();
+  pts->SetDataTypeToDouble();
+  pts->SetNumberOfPoints(static_cast<vtkIdType>(m.vertices.size()));
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) pts->SetPoint(static_cast<vtkIdType>(i), m.vertices[i].data());
+  auto cells = Ptr<vtkCellArray>::New();
+  for (const auto& f : m.faces) {
+    const vtkIdType ids[3] = {f[0], f[1], f[2]};
+    cells->InsertNextCell(3, ids);
+  }
+  auto pd = Ptr<vtkPolyData>::New();
+  pd->SetPoints(pts);
+  pd->SetPolys(cells);
+  return pd;
+}
+
+Mesh from_vtk(vtkPolyData* pd) {
+  Mesh m;
+  m.vertices.resize(static_cast<std::size_t>(pd->GetNumberOfPoints()));
+  for (vtkIdType i = 0; i < pd->GetNumberOfPoints(); ++i) pd->GetPoint(i, m.vertices[static_cast<std::size_t>(i)].data());
+  auto* polys = pd->GetPolys();
+  polys->InitTraversal();
+  vtkIdType n;
+  const vtkIdType* ids;
+  while (polys->GetNextCell(n, ids))
+    if (n == 3) m.faces.push_back({static_cast<int>(ids[0]), static_cast<int>(ids[1]), static_cast<int>(ids[2])});
+  return m;
+}
+
+}  // namespace
+
+MeshStats measure(const Mesh& m) {
+  MeshStats s;
+  s.vertices = m.vertices.size();
+  s.faces = m.faces.size();
+  std::unordered_map<std::uint64_t, int> edges;
+  edges.reserve(m.faces.size() * 2);
+  for (const auto& f : m.faces) {
+    const Vec3 &a = m.vertices[f[0]], &b = m.vertices[f[1]], &c = m.vertices[f[2]];
+    s.area_mm2 += 0.5 * norm(cross(b - a, c - a));
+    s.volume_mm3 += dot(a, cross(b, c)) / 6.0;
+    for (int e = 0; e < 3; ++e) {
+      std::uint64_t u = static_cast<std::uint32_t>(f[e]), v = static_cast<std::uint32_t>(f[(e + 1) % 3]);
+      if (u > v) std::swap(u, v);
+      ++edges[(u << 32) | v];
+    }
+  }
+  bool closed = !m.faces.empty(), manifold = true;
+  for (const auto& [key, count] : edges) {
+    if (count != 2) closed = false;
+    if (count > 2) manifold = false;
+  }
+  s.closed = closed;
+  s.manifold = manifold;
+  if (closed) {
+    const long chi = static_cast<long>(s.vertices) - static_cast<long>(edges.size()) + static_cast<long>(s.faces);
+    s.genus = static_cast<int>((2 - chi) / 2);
+  }
+  return s;
+}
+
+Result mesh_from_mask(const Mask& mask, const Options& opt) {
+  const Geometry& g = mask.geom;
+  // Crop to the mask's bounding box plus a margin of empty voxels so the
+  // surface closes at the scan border.
+  std::array<long, 3> lo{static_cast<long>(g.size[0]), static_cast<long>(g.size[1]), static_cast<long>(g.size[2])};
+  std::array<long, 3> hi{-1, -1, -1};
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        if (mask.data[g.linear(i, j, k)]) {
+          const long idx[3] = {static_cast<long>(i), static_cast<long>(j), static_cast<long>(k)};
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], idx[a]);
+            hi[a] = std::max(hi[a], idx[a]);
+          }
+        }
+  if (hi[0] < 0) throw Error(ExitCode::GeometryFailed, "mandible mask is empty: no surface to build");
+  const long pad = 3;
+  int dims[3];
+  for (int a = 0; a < 3; ++a) dims[a] = static_cast<int>(hi[a] - lo[a] + 1 + 2 * pad);
+  auto img = Ptr<vtkImageData>::New();
+  img->SetDimensions(dims);
+  img->SetSpacing(g.spacing[0], g.spacing[1], g.spacing[2]);  // mm along the index axes
+  img->SetOrigin(0, 0, 0);
+  img->AllocateScalars(VTK_FLOAT, 1);
+  auto* buf = static_cast<float*>(img->GetScalarPointer());
+  std::fill(buf, buf + static_cast<std::size_t>(dims[0]) * dims[1] * dims[2], 0.0f);
+  for (long k = lo[2]; k <= hi[2]; ++k)
+    for (long j = lo[1]; j <= hi[1]; ++j)
+      for (long i = lo[0]; i <= hi[0]; ++i)
+        if (mask.data[g.linear(i, j, k)])
+          buf[(i - lo[0] + pad) + dims[0] * ((j - lo[1] + pad) + static_cast<long>(dims[1]) * (k - lo[2] + pad))] = 1.0f;
+
+  auto smooth = Ptr<vtkImageGaussianSmooth>::New();
+  smooth->SetInputData(img);
+  smooth->SetDimensionality(3);
+  smooth->SetStandardDeviations(opt.smoothing_sigma_mm / g.spacing[0], opt.smoothing_sigma_mm / g.spacing[1],
+                                opt.smoothing_sigma_mm / g.spacing[2]);
+  smooth->SetRadiusFactors(3, 3, 3);
+  auto fe = Ptr<vtkFlyingEdges3D>::New();
+  fe->SetInputConnection(smooth->GetOutputPort());
+  fe->SetValue(0, 0.5);
+  fe->ComputeNormalsOff();
+  fe->ComputeGradientsOff();
+  fe->ComputeScalarsOff();
+  auto conn = Ptr<vtkPolyDataConnectivityFilter>::New();
+  conn->SetInputConnection(fe->GetOutputPort());
+  conn->SetExtractionModeToLargestRegion();
+  auto clean = Ptr<vtkCleanPolyData>::New();
+  clean->SetInputConnection(conn->GetOutputPort());
+  clean->PointMergingOn();
+  clean->Update();
+  vtkSmartPointer<vtkPolyData> pd = clean->GetOutput();
+  if (pd->GetNumberOfPolys() == 0) throw Error(ExitCode::GeometryFailed, "marching cubes produced no surface");
+  if (opt.target_faces > 0 && static_cast<std::size_t>(pd->GetNumberOfPolys()) > opt.target_faces) {
+    auto tri = Ptr<vtkTriangleFilter>::New();
+    tri->SetInputData(pd);
+    auto dec = Ptr<vtkQuadricDecimation>::New();
+    dec->SetInputConnection(tri->GetOutputPort());
+    dec->SetTargetReduction(1.0 - static_cast<double>(opt.target_faces) / pd->GetNumberOfPolys());
+    dec->VolumePreservationOn();
+    auto clean2 = Ptr<vtkCleanPolyData>::New();
+    clean2->SetInputConnection(dec->GetOutputPort());
+    clean2->Update();
+    pd = clean2->GetOutput();
+  }
+  Result r;
+  r.mesh = from_vtk(pd);
+  // Index-space mm -> LPS: p = origin + D * (lo * spacing + q), q in mm along index axes.
+  for (auto& v : r.mesh.vertices) {
+    const Vec3 q{v[0] / g.spacing[0] + lo[0] - pad, v[1] / g.spacing[1] + lo[1] - pad, v[2] / g.spacing[2] + lo[2] - pad};
+    v = g.index_to_lps(q[0], q[1], q[2]);
+  }
+  r.stats = measure(r.mesh);
+  if (r.stats.volume_mm3 < 0) {  // mirror-handed grid or inward faces: flip to outward
+    for (auto& f : r.mesh.faces) std::swap(f[1], f[2]);
+    r.stats.volume_mm3 = -r.stats.volume_mm3;
+  }
+  return r;
+}
+
+void write_vtp(const Mesh& mesh, const PointArrays& arrays, const std::string& path) {
+  auto pd = to_vtk(mesh);
+  for (const auto& [name, values] : arrays) {
+    if (values.size() != mesh.vertices.size())
+      throw Error(ExitCode::Internal, "write_vtp: array " + name + " has the wrong length");
+    auto arr = Ptr<vtkDoubleArray>::New();
+    arr->SetName(name.c_str());
+    arr->SetNumberOfValues(static_cast<vtkIdType>(values.size()));
+    for (std::size_t i = 0; i < values.size(); ++i) arr->SetValue(static_cast<vtkIdType>(i), values[i]);
+    pd->GetPointData()->AddArray(arr);
+  }
+  auto w = Ptr<vtkXMLPolyDataWriter>::New();
+  w->SetFileName(path.c_str());
+  w->SetInputData(pd);
+  w->SetDataModeToBinary();
+  if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write VTP");
+}
+
+void write_stl(const Mesh& mesh, const std::string& path) {
+  auto w = Ptr<vtkSTLWriter>::New();
+  w->SetFileName(path.c_str());
+  w->SetInputData(to_vtk(mesh));
+  w->SetFileTypeToBinary();
+  if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write STL");
+}
+
+void write_ply(const Mesh& mesh, const std::string& path) {
+  auto w = Ptr<vtkPLYWriter>::New();
+  w->SetFileName(path.c_str());
+  w->SetInputData(to_vtk(mesh));
+  w->SetFileTypeToBinary();
+  if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write PLY");
+}
+
+Mesh read_vtp(const std::string& path) {
+  auto r = Ptr<vtkXMLPolyDataReader>::New();
+  r->SetFileName(path.c_str());
+  r->Update();
+  if (!r->GetOutput() || r->GetOutput()->GetNumberOfPoints() == 0)
+    throw Error(ExitCode::InputInvalid, path + ": cannot read VTP mesh");
+  return from_vtk(r->GetOutput());
+}
+
+}  // namespace ms::surface
