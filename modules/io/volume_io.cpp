@@ -14,6 +14,7 @@
 #include <itkNiftiImageIOFactory.h>
 #include <itkNrrdImageIOFactory.h>
 
+#include <gdcmTrace.h>
 #include <gdcmUIDGenerator.h>
 
 #include <algorithm>
@@ -37,6 +38,10 @@ using MaskImage = itk::Image<unsigned char, 3>;
 void register_factories() {
   static std::once_flag once;
   std::call_once(once, [] {
+    // Our own one-line messages replace GDCM/ITK console chatter.
+    gdcm::Trace::SetWarning(false);
+    gdcm::Trace::SetDebug(false);
+    itk::Object::GlobalWarningDisplayOff();
     itk::GDCMImageIOFactory::RegisterOneFactory();
     itk::NiftiImageIOFactory::RegisterOneFactory();
     itk::NrrdImageIOFactory::RegisterOneFactory();
@@ -336,6 +341,7 @@ std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, co
     set("0020|0037", iop);
     set("0020|1041", num(dot(p, Vec3{g.direction[2], g.direction[5], g.direction[8]})));
     set("0028|0030", num(g.spacing[1]) + "\\" + num(g.spacing[0]));  // row spacing \ column spacing
+    set("0028|0004", "MONOCHROME2");
     set("0028|1052", "-1024");
     set("0028|1053", "1");
     set("0028|1054", "HU");
@@ -355,16 +361,16 @@ std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, co
       gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG);
     else if (spec.compression == "jpeg2000")
       gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG2000);
-    else if (spec.compression == "rle")
-      gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::RLE);
     else
-      throw Error(ExitCode::Usage, "unknown DICOM compression '" + spec.compression + "'");
+      throw Error(ExitCode::Usage, "unknown DICOM compression '" + spec.compression +
+                                       "' (expected raw, jpeg-lossless or jpeg2000)");
   }
   auto writer = itk::ImageSeriesWriter<ShortImage, SliceImage>::New();
   writer->SetInput(img);
   writer->SetImageIO(gdcm_io);
   writer->SetFileNames(files);
   writer->SetMetaDataDictionaryArray(&dict_ptrs);
+  writer->SetUseCompression(spec.compression != "raw");  // the writer overrides the IO flag
   try {
     writer->Update();
   } catch (const itk::ExceptionObject& e) {

@@ -48,7 +48,8 @@ struct DicomSeriesSpec {
   // Empty: fresh UIDs are generated (GDCM UID generator).
   std::string study_uid;
   std::string series_uid;
-  // Transfer syntax: "raw" (explicit little endian) or "jpeg-lossless", "jpeg2000", "rle".
+  // Transfer syntax: "raw" (explicit little endian), "jpeg-lossless" (process 14) or
+  // "jpeg2000" (lossless). ITK 5.2 cannot write RLE.
   std::string compression = "raw";
 };
 

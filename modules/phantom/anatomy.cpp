@@ -83,8 +83,10 @@ Vec3 SideModel::to_h(double f, double u, double n) const {
 
 Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
   // ---- body centreline (left half; right half mirrored), H frame (x, y) ----
-  const std::vector<sdf::P2> ctrl = {{0, -70}, {12, -68}, {22, -63}, {30, -55}, {36, -45},
-                                     {40, -35}, {43, -25}, {45, -16}, {45.5, -11}};
+  // Intermolar width ~50 mm, bigonial width ~91 mm: the molars sit well
+  // medial to the anterior ramus border (retromolar region), as in adults.
+  const std::vector<sdf::P2> ctrl = {{0, -70}, {8, -68}, {16.5, -63.5}, {22, -55}, {25, -45},
+                                     {28, -35}, {33, -26}, {40, -17.5}, {45.5, -11}};
   const auto base = catmull_rom(ctrl, 8);
   std::vector<double> arc(base.size(), 0.0);
   for (std::size_t i = 1; i < base.size(); ++i)
@@ -345,10 +347,10 @@ double Anatomy::maxilla(const Vec3& p) const {
     d = sdf::extrude(h.d - 6.0 + 2.0, std::max(zb - p[2], p[2] - zt) + 2.0) - 2.0;
   }
   // maxillary body with palate, hollowed by sinuses and the nasal cavity
-  double body = sdf::round_box(p - Vec3{0, -47, zo + 34}, {40, 27, 15}, 6.0);
+  double body = sdf::round_box(p - Vec3{0, -47, zo + 34}, {35, 27, 15}, 6.0);
   const double walls = 0.0;  // cavity walls come from the box rounding
   double cav = sdf::round_box(p - Vec3{0, -45, zo + 39}, {10, 26, 11}, 3.0);
-  for (double s : {1.0, -1.0}) cav = std::min(cav, sdf::ellipsoid(p - Vec3{s * 24, -47, zo + 36}, {12, 17, 10}));
+  for (double s : {1.0, -1.0}) cav = std::min(cav, sdf::ellipsoid(p - Vec3{s * 21, -47, zo + 36}, {10, 17, 10}));
   body = std::max(body, -(cav - walls));
   d = sdf::smin(d, body, 3.0);
   // zygomatic arches
@@ -396,7 +398,7 @@ double Anatomy::hu(const Vec3& p, double w) const {
   const double zo = z_occlusal(0.0);
   double air = sdf::capsule(p, {0, 12, -2}, {0, 14, -125}, 7.0);
   air = std::min(air, sdf::round_box(p - Vec3{0, -45, zo + 39}, {10, 26, 11}, 3.0));
-  for (double s : {1.0, -1.0}) air = std::min(air, sdf::ellipsoid(p - Vec3{s * 24, -47, zo + 36}, {12, 17, 10}));
+  for (double s : {1.0, -1.0}) air = std::min(air, sdf::ellipsoid(p - Vec3{s * 21, -47, zo + 36}, {10, 17, 10}));
   paint(v, cover(air), -1000.0);
   // skull vault (shell above the skull base)
   {

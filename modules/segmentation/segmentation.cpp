@@ -75,7 +75,6 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
                                           std::to_string(opt.min_component_cm3) + " cm3)");
 
   std::vector<Component> comps(n_labels + 1);
-  Vec3 bone_lo{1e30, 1e30, 1e30}, bone_hi{-1e30, -1e30, -1e30};
   for (std::size_t k = 0; k < g.size[2]; ++k)
     for (std::size_t j = 0; j < g.size[1]; ++j)
       for (std::size_t i = 0; i < g.size[0]; ++i) {
@@ -88,26 +87,31 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
         for (int a = 0; a < 3; ++a) {
           c.lo[a] = std::min(c.lo[a], p[a]);
           c.hi[a] = std::max(c.hi[a], p[a]);
-          bone_lo[a] = std::min(bone_lo[a], p[a]);
-          bone_hi[a] = std::max(bone_hi[a], p[a]);
         }
       }
-  // The mandible is the widest (left-right) bone that does not reach the top
-  // part of the bone's superior-inferior range (the skull does).
-  const double z_cut = bone_hi[2] - 0.3 * (bone_hi[2] - bone_lo[2]);
+  // The mandible is the lowest of the wide bones: among components at least
+  // 40 mm wide left-right (skull, maxilla, mandible; not the spine or hyoid),
+  // the one whose centroid is most inferior along the scan's superior axis.
+  // Thin rule: when the teeth or condyles touch, mandible and skull form one
+  // component and this picks both (issue C separates them).
+  std::vector<double> zsum(n_labels + 1, 0.0);
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        if (const unsigned l = labels[g.linear(i, j, k)]) zsum[l] += g.index_to_lps(i, j, k)[2];
   unsigned best = 0;
-  double best_width = 0;
+  double best_z = 1e30;
   for (unsigned l = 1; l <= n_labels; ++l) {
     const Component& c = comps[l];
-    if (c.voxels == 0 || c.hi[2] > z_cut) continue;
-    const double width = c.hi[0] - c.lo[0];
-    if (width > best_width) {
-      best_width = width;
+    if (c.voxels == 0 || c.hi[0] - c.lo[0] < 40.0) continue;
+    const double zc = zsum[l] / c.voxels;
+    if (zc < best_z) {
+      best_z = zc;
       best = l;
     }
   }
-  if (best == 0 || best_width < 40.0)
-    throw Error(ExitCode::NoMandible, "no mandible found: no bone component below the skull is wider than 40 mm");
+  if (best == 0)
+    throw Error(ExitCode::NoMandible, "no mandible found: no bone component is at least 40 mm wide left-right");
 
   auto comp = make_image(g);
   {

@@ -1,0 +1,44 @@
+// Declarative command-line specs: each verb declares its description,
+// arguments and options in one place; help text and parsing come from it.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+
+namespace ms::cli {
+
+struct OptionSpec {
+  std::string name;         // without the leading "--"
+  std::string value_name;   // empty: a flag
+  std::string help;
+  std::string default_value;
+};
+
+struct CommandSpec {
+  std::string name;
+  std::string synopsis;     // one line
+  std::string description;  // paragraph
+  std::vector<std::pair<std::string, std::string>> arguments;  // name, help
+  std::vector<OptionSpec> options;
+};
+
+class Args {
+ public:
+  std::vector<std::string> positional;
+  std::map<std::string, std::string> values;  // flags map to "1"
+  bool has(const std::string& n) const { return values.count(n) > 0; }
+  std::string get(const std::string& n, const std::string& def = "") const;
+  double number(const std::string& n, double def) const;   // throws Error(Usage) naming the option
+  Vec3 vec3(const std::string& n, const Vec3& def) const;   // "x,y,z" or a single value for all three
+};
+
+// Throws ms::Error(Usage) with a one-line message on unknown options, missing
+// values or a wrong number of arguments.
+Args parse(const CommandSpec& spec, const std::vector<std::string>& argv);
+std::string help(const CommandSpec& spec);
+
+}  // namespace ms::cli

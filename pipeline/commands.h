@@ -1,0 +1,20 @@
+// The verbs of the mandisym executable.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pipeline/cli.h"
+
+namespace ms::pipeline {
+
+const cli::CommandSpec& run_spec();
+const cli::CommandSpec& phantom_spec();
+
+// Each returns the process exit code; errors are thrown as ms::Error.
+int run_command(const cli::Args& args, const std::string& command_line);
+int phantom_command(const cli::Args& args);
+
+const char* version();
+
+}  // namespace ms::pipeline

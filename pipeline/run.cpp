@@ -1,0 +1,215 @@
+// `mandisym run`: ingest -> segment -> surface -> landmarks -> reference ->
+// asymmetry -> report. Outputs are staged in a hidden folder inside OUTDIR and
+// moved into place only when every stage succeeded (results.json last), so a
+// failed or killed run never leaves a report that looks complete.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "asymmetry/measures.h"
+#include "asymmetry/saf.h"
+#include "core/error.h"
+#include "io/volume_io.h"
+#include "landmarks/landmarks.h"
+#include "pipeline/commands.h"
+#include "reference/reference.h"
+#include "reports/figures.h"
+#include "reports/writers.h"
+#include "segmentation/segmentation.h"
+#include "surface/surface.h"
+
+namespace fs = std::filesystem;
+
+namespace ms::pipeline {
+
+const cli::CommandSpec& run_spec() {
+  static const cli::CommandSpec s{
+      "run",
+      "Measure mandibular asymmetry in one head CT and write a report.",
+      "INPUT is a folder holding a DICOM CT series (searched recursively) or a volume file (.nii, .nii.gz, .nrrd, "
+      ".nhdr, .mha, .mhd) in HU. Writes report.html, results.json, mandible_mask.nii.gz, mandible.vtp/.stl/.ply, "
+      "landmarks.mrk.json, symmetry_plane.mrk.json, results.csv, qc/ and log.txt into OUTDIR.",
+      {{"INPUT", "DICOM folder or volume file"}},
+      {{"output", "OUTDIR", "output folder (created; existing outputs are replaced)", ""},
+       {"hu-offset", "HU", "added to every voxel after the file's own rescale (e.g. -1024 for HU+1024 data)", "0"},
+       {"series", "UID", "SeriesInstanceUID to use when the folder holds several series", "largest CT series"},
+       {"bone-threshold", "HU", "bone threshold for segmentation", "250"},
+       {"target-faces", "N", "decimate the surface above this many triangles", "60000"},
+       {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
+       {"no-figures", "", "do not write QC figures", ""},
+       {"quiet", "", "print nothing but errors", ""},
+       {"help", "", "show this help", ""}}};
+  return s;
+}
+
+namespace {
+
+class Stopwatch {
+ public:
+  double lap() {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - last_).count();
+    last_ = now;
+    return s;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace
+
+int run_command(const cli::Args& args, const std::string& command_line) {
+  const auto t_start = std::chrono::steady_clock::now();
+  const std::string input = args.positional.at(0);
+  const std::string outdir = args.get("output");
+  if (outdir.empty()) throw Error(ExitCode::Usage, "run: -o OUTDIR is required");
+  const bool quiet = args.has("quiet");
+  std::ostringstream log;
+  auto say = [&](const std::string& line) {
+    log << line << "\n";
+    if (!quiet) std::cout << line << std::endl;
+  };
+
+  reports::RunSummary S;
+  S.tool_version = version();
+  S.command_line = command_line;
+  Stopwatch sw;
+  auto stage = [&](const char* name, int k) {
+    const double t = sw.lap();
+    S.timings_s.emplace_back(name, t);
+    char b[128];
+    std::snprintf(b, sizeof b, "[%d/6] %-10s %7.2f s", k, name, t);
+    say(b);
+  };
+
+  // 1. ingest
+  io::ReadOptions ro;
+  ro.hu_offset = args.number("hu-offset", 0.0);
+  ro.series_uid = args.get("series");
+  io::LoadedScan scan = io::read_scan(input, ro);
+  S.scan = scan.info;
+  S.grid = scan.volume.geom;
+  for (const auto& w : scan.info.warnings) S.warnings.push_back("ingest: " + w);
+  stage("ingest", 1);
+
+  // 2. segmentation
+  segmentation::Options so;
+  so.bone_threshold_hu = args.number("bone-threshold", so.bone_threshold_hu);
+  segmentation::Result seg = segmentation::segment_mandible(scan.volume, so);
+  S.segmentation_method = seg.method;
+  S.seg_voxels = seg.voxels;
+  S.seg_volume_mm3 = seg.volume_mm3;
+  S.truncated = seg.truncated;
+  for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
+  stage("segment", 2);
+
+  // 3. surface
+  surface::Options mo;
+  mo.target_faces = static_cast<std::size_t>(args.number("target-faces", static_cast<double>(mo.target_faces)));
+  surface::Result surf = surface::mesh_from_mask(seg.mask, mo);
+  S.mesh = surf.stats;
+  if (!surf.stats.closed) S.warnings.push_back("surface: the mesh is not closed; distances near holes are unreliable");
+  stage("surface", 3);
+
+  // 4. landmarks
+  S.landmarks = landmarks::detect(surf.mesh);
+  for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
+  stage("landmarks", 4);
+
+  // 5. symmetry plane + reference configuration
+  S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh);
+  for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
+  stage("reference", 5);
+
+  // 6. asymmetry
+  const auto regions = asymmetry::assign_regions(surf.mesh, S.landmarks.landmarks);
+  S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions);
+  asymmetry::SafOptions sao;
+  sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
+  S.saf = asymmetry::compute_saf(surf.mesh, S.landmarks.landmarks, S.reference.plane, sao);
+  if (!S.saf.skipped.empty())
+    S.warnings.push_back("asymmetry: " + std::to_string(S.saf.skipped.size()) +
+                         " SAF configuration(s) skipped for missing landmarks");
+  const auto areas = asymmetry::vertex_areas(surf.mesh);
+  if (!S.saf.per_vertex.empty()) S.saf_regions = asymmetry::regional_means(S.saf.per_vertex, areas, regions);
+  S.bilateral = asymmetry::bilateral_measures(S.landmarks.landmarks, S.reference.plane);
+  if (S.truncated) S.warnings.push_back("scores: the mandible is truncated; asymmetry scores are not comparable");
+  stage("asymmetry", 6);
+
+  S.parameters["hu_offset"] = std::to_string(ro.hu_offset);
+  S.parameters["bone_threshold_hu"] = std::to_string(so.bone_threshold_hu);
+  S.parameters["surface_smoothing_sigma_mm"] = std::to_string(mo.smoothing_sigma_mm);
+  S.parameters["surface_target_faces"] = std::to_string(mo.target_faces);
+  S.parameters["saf_disk_radius_mm"] = std::to_string(sao.disk_radius_mm);
+  S.parameters["landmark_method"] = S.landmarks.method;
+
+  // ---- outputs, staged then moved into place ----
+  std::error_code ec;
+  fs::create_directories(outdir, ec);
+  if (ec) throw Error(ExitCode::OutputFailed, outdir + ": cannot create output folder: " + ec.message());
+  const fs::path stage_dir = fs::path(outdir) / (".mandisym-partial-" + std::to_string(::getpid()));
+  fs::remove_all(stage_dir, ec);
+  fs::create_directories(stage_dir / "qc", ec);
+  if (ec) throw Error(ExitCode::OutputFailed, stage_dir.string() + ": cannot create: " + ec.message());
+  try {
+    io::write_mask(seg.mask, (stage_dir / "mandible_mask.nii.gz").string());
+    surface::PointArrays arrays;
+    arrays["mirror_distance_mm"] = S.mirror.per_vertex;
+    arrays["saf_asymmetry"] = S.saf.per_vertex.empty() ? std::vector<double>(surf.mesh.vertices.size(), 0.0) : S.saf.per_vertex;
+    std::vector<double> reg(regions.label.begin(), regions.label.end());
+    arrays["region"] = reg;
+    surface::write_vtp(surf.mesh, arrays, (stage_dir / "mandible.vtp").string());
+    surface::write_stl(surf.mesh, (stage_dir / "mandible.stl").string());
+    surface::write_ply(surf.mesh, (stage_dir / "mandible.ply").string());
+    reports::write_text_atomic((stage_dir / "landmarks.mrk.json").string(),
+                               reports::landmarks_markup(S.landmarks.landmarks));
+    reports::write_text_atomic((stage_dir / "symmetry_plane.mrk.json").string(),
+                               reports::plane_markup(S.reference.plane, 120.0));
+    std::vector<std::string> figures;
+    if (!args.has("no-figures")) figures = reports::write_qc_slices(scan.volume, seg.mask, (stage_dir / "qc").string());
+    S.timings_s.emplace_back("report", sw.lap());
+    S.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    // region legend for the VTP's integer region array
+    {
+      std::ostringstream legend;
+      for (std::size_t k = 0; k < regions.names.size(); ++k) legend << k << "=" << regions.names[k] << " ";
+      S.parameters["vtp_region_labels"] = legend.str();
+    }
+    reports::write_text_atomic((stage_dir / "report.html").string(), reports::report_html(S, figures));
+    reports::write_text_atomic((stage_dir / "results.csv").string(), reports::csv_header() + reports::csv_row(S, "ok"));
+    for (const auto& w : S.warnings) log << "warning: " << w << "\n";
+    {
+      char b[64];
+      std::snprintf(b, sizeof b, "total %.2f s", S.total_s);
+      say(b);
+    }
+    reports::write_text_atomic((stage_dir / "log.txt").string(), "mandisym " + S.tool_version + "\n" + command_line + "\n" + log.str());
+    reports::write_text_atomic((stage_dir / "results.json").string(), reports::results_json(S).dump(2) + "\n");
+    // Move into place: everything else first, results.json last (its presence
+    // marks a complete run).
+    fs::remove_all(fs::path(outdir) / "qc", ec);
+    fs::remove(fs::path(outdir) / "results.json", ec);
+    for (const auto& entry : fs::directory_iterator(stage_dir)) {
+      if (entry.path().filename() == "results.json") continue;
+      fs::rename(entry.path(), fs::path(outdir) / entry.path().filename());
+    }
+    fs::rename(stage_dir / "results.json", fs::path(outdir) / "results.json");
+    fs::remove_all(stage_dir, ec);
+  } catch (...) {
+    fs::remove_all(stage_dir, ec);
+    throw;
+  }
+  if (!quiet) {
+    for (const auto& w : S.warnings) std::cout << "warning: " << w << "\n";
+    std::cout << "report: " << (fs::absolute(fs::path(outdir)) / "report.html").lexically_normal().string() << std::endl;
+  }
+  return 0;
+}
+
+}  // namespace ms::pipeline

@@ -1,0 +1,41 @@
+// Everything one `mandisym run` produced, gathered for the writers. Plain
+// value types from each stage; the writers never call back into the stages.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "asymmetry/measures.h"
+#include "asymmetry/saf.h"
+#include "core/types.h"
+#include "landmarks/landmarks.h"
+#include "reference/reference.h"
+#include "segmentation/segmentation.h"
+#include "surface/surface.h"
+
+namespace ms::reports {
+
+struct RunSummary {
+  std::string tool_version;
+  std::string command_line;
+  ScanInfo scan;
+  Geometry grid;
+  std::string segmentation_method;
+  std::size_t seg_voxels = 0;
+  double seg_volume_mm3 = 0;
+  bool truncated = false;
+  surface::MeshStats mesh;
+  landmarks::Result landmarks;
+  reference::Result reference;
+  asymmetry::SafResult saf;
+  std::map<std::string, double> saf_regions;
+  asymmetry::MirrorResult mirror;
+  std::map<std::string, asymmetry::Bilateral> bilateral;
+  std::vector<std::pair<std::string, double>> timings_s;  // in stage order
+  double total_s = 0;
+  std::vector<std::string> warnings;
+  std::map<std::string, std::string> parameters;
+};
+
+}  // namespace ms::reports

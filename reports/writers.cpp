@@ -1,0 +1,389 @@
+#include "reports/writers.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace ms::reports {
+namespace {
+
+json::Value vec(const Vec3& v) { return json::Value::array_of(v); }
+
+json::Value num_or_null(double v, bool valid = true) { return valid && std::isfinite(v) ? json::Value(v) : json::Value(); }
+
+std::string fmt(double v, int prec = 2) {
+  if (!std::isfinite(v)) return "n/a";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", prec, v);
+  return b;
+}
+
+std::string base64(const std::string& in) {
+  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((in.size() + 2) / 3 * 4);
+  std::size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const unsigned n = (static_cast<unsigned char>(in[i]) << 16) | (static_cast<unsigned char>(in[i + 1]) << 8) |
+                       static_cast<unsigned char>(in[i + 2]);
+    out += t[(n >> 18) & 63];
+    out += t[(n >> 12) & 63];
+    out += t[(n >> 6) & 63];
+    out += t[n & 63];
+  }
+  if (i < in.size()) {
+    unsigned n = static_cast<unsigned char>(in[i]) << 16;
+    if (i + 1 < in.size()) n |= static_cast<unsigned char>(in[i + 1]) << 8;
+    out += t[(n >> 18) & 63];
+    out += t[(n >> 12) & 63];
+    out += i + 1 < in.size() ? t[(n >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+json::Value stats_json(const asymmetry::DistanceStats& s, bool full) {
+  auto o = json::Value::object();
+  o["mean_mm"] = s.mean_abs;
+  if (full) o["signed_mean_mm"] = s.signed_mean;
+  o["rms_mm"] = s.rms;
+  o["p95_mm"] = s.p95;
+  o["max_mm"] = s.max;
+  if (full) {
+    o["pct_area_over_1mm"] = s.pct_area_over_1mm;
+    o["pct_area_over_2mm"] = s.pct_area_over_2mm;
+  }
+  return o;
+}
+
+}  // namespace
+
+std::string html_escape(const std::string& s) {
+  std::string o;
+  o.reserve(s.size());
+  for (char c : s) switch (c) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      case '\'': o += "&#39;"; break;
+      default: o += c;
+    }
+  return o;
+}
+
+void write_text_atomic(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".partial";
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    f << text;
+    if (!f) throw Error(ExitCode::OutputFailed, path + ": cannot write");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw Error(ExitCode::OutputFailed, path + ": cannot write: " + ec.message());
+}
+
+json::Value results_json(const RunSummary& s) {
+  using json::Value;
+  auto root = Value::object();
+  root["schema_version"] = kSchemaVersion;
+  root["tool"]["name"] = "mandisym";
+  root["tool"]["version"] = s.tool_version;
+
+  auto& in = root["input"];
+  in["path"] = s.scan.path;
+  in["kind"] = s.scan.kind;
+  in["series_uid"] = s.scan.series_uid.empty() ? Value() : Value(s.scan.series_uid);
+  in["modality"] = s.scan.modality.empty() ? Value() : Value(s.scan.modality);
+  in["size_voxels"] = Value::array_of(std::array<double, 3>{double(s.grid.size[0]), double(s.grid.size[1]), double(s.grid.size[2])});
+  in["spacing_mm"] = vec(s.grid.spacing);
+  in["origin_mm"] = vec(s.grid.origin);
+  in["direction"] = Value::array_of(s.grid.direction);
+  in["sha256_of_pixel_data"] = s.scan.pixel_sha256;
+  in["study_date"] = s.scan.study_date.empty() ? Value() : Value(s.scan.study_date);
+  in["manufacturer"] = s.scan.manufacturer.empty() ? Value() : Value(s.scan.manufacturer);
+  in["kernel"] = s.scan.kernel.empty() ? Value() : Value(s.scan.kernel);
+
+  auto& seg = root["segmentation"];
+  seg["method"] = s.segmentation_method;
+  seg["voxels"] = s.seg_voxels;
+  seg["volume_mm3"] = s.seg_volume_mm3;
+  seg["truncated"] = s.truncated;
+
+  auto& mesh = root["mesh"];
+  mesh["vertices"] = s.mesh.vertices;
+  mesh["faces"] = s.mesh.faces;
+  mesh["area_mm2"] = s.mesh.area_mm2;
+  mesh["volume_mm3"] = s.mesh.volume_mm3;
+  mesh["genus"] = s.mesh.genus >= 0 ? Value(s.mesh.genus) : Value();
+  mesh["closed"] = s.mesh.closed;
+  mesh["manifold"] = s.mesh.manifold;
+
+  auto& lm = root["landmarks"];
+  lm = Value::object();
+  for (const auto& n : landmark_names()) {
+    const Vec3* p = s.landmarks.landmarks.find(n);
+    lm[n] = p ? vec(*p) : Value();
+  }
+  root["landmark_detection"]["method"] = s.landmarks.method;
+  auto& missing = root["landmark_detection"]["missing"];
+  missing = Value::array();
+  for (const auto& m : s.landmarks.missing) missing.push_back(m);
+
+  auto& pl = root["symmetry_plane"];
+  pl["point"] = vec(s.reference.plane.point);
+  pl["normal"] = vec(s.reference.plane.normal);
+  pl["rms_landmark_residual_mm"] = s.reference.rms_landmark_residual_mm;
+  pl["surface_rms_mm"] = num_or_null(s.reference.surface_rms_mm, s.reference.surface_rms_mm >= 0);
+  auto& ref = root["reference_configuration"];
+  ref = Value::object();
+  for (const auto& [n, p] : s.reference.reference.points) ref[n] = vec(p);
+  auto& av = root["landmark_asymmetry_mm"];
+  av = Value::object();
+  for (const auto& [n, v] : s.reference.asymmetry_vectors) {
+    av[n]["medio_lateral"] = v[0];
+    av[n]["antero_posterior"] = v[1];
+    av[n]["supero_inferior"] = v[2];
+  }
+
+  auto& saf = root["scores"]["saf"];
+  saf["score"] = num_or_null(s.saf.score, s.saf.score >= 0);
+  saf["unit"] = "rad";
+  saf["per_configuration"] = Value::object();
+  for (const auto& [n, v] : s.saf.per_configuration) saf["per_configuration"][n] = v;
+  saf["regions"] = Value::object();
+  for (const auto& [n, v] : s.saf_regions) saf["regions"][n] = v;
+  saf["correspondence_free"] = num_or_null(s.saf.correspondence_free, s.saf.correspondence_free >= 0);
+  saf["skipped_configurations"] = Value::array();
+  for (const auto& n : s.saf.skipped) saf["skipped_configurations"].push_back(n);
+
+  auto& mir = root["scores"]["mirror"];
+  mir = stats_json(s.mirror.overall, true);
+  mir["regions"] = Value::object();
+  for (const auto& [n, st] : s.mirror.regions) mir["regions"][n] = stats_json(st, false);
+
+  auto& bil = root["scores"]["bilateral"];
+  bil = Value::object();
+  for (const auto& [n, b] : s.bilateral) {
+    bil[n]["L"] = b.L;
+    bil[n]["R"] = b.R;
+    bil[n]["diff"] = b.diff;
+    bil[n]["ratio"] = b.ratio;
+  }
+
+  auto& t = root["timings_s"];
+  t = Value::object();
+  for (const auto& [n, v] : s.timings_s) t[n] = v;
+  t["total"] = s.total_s;
+
+  auto& w = root["warnings"];
+  w = Value::array();
+  for (const auto& x : s.warnings) w.push_back(x);
+  auto& p = root["parameters"];
+  p = Value::object();
+  for (const auto& [k, v] : s.parameters) p[k] = v;
+  return root;
+}
+
+std::string landmarks_markup(const LandmarkSet& lms) {
+  using json::Value;
+  auto root = Value::object();
+  root["@schema"] =
+      "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/"
+      "markups-schema-v1.0.3.json#";
+  auto m = Value::object();
+  m["type"] = "Fiducial";
+  m["coordinateSystem"] = "LPS";
+  m["coordinateUnits"] = "mm";
+  m["controlPoints"] = Value::array();
+  int id = 1;
+  for (const auto& n : landmark_names()) {
+    const Vec3* p = lms.find(n);
+    auto cp = Value::object();
+    cp["id"] = std::to_string(id++);
+    cp["label"] = n;
+    cp["position"] = p ? vec(*p) : Value::array_of(std::array<double, 3>{0, 0, 0});
+    cp["positionStatus"] = p ? "defined" : "undefined";
+    m["controlPoints"].push_back(cp);
+  }
+  root["markups"] = Value::array();
+  root["markups"].push_back(m);
+  return root.dump(2) + "\n";
+}
+
+std::string plane_markup(const Plane& plane, double size_mm) {
+  using json::Value;
+  auto root = Value::object();
+  root["@schema"] =
+      "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/"
+      "markups-schema-v1.0.3.json#";
+  auto m = Value::object();
+  m["type"] = "Plane";
+  m["coordinateSystem"] = "LPS";
+  m["coordinateUnits"] = "mm";
+  m["planeType"] = "pointNormal";
+  m["sizeMode"] = "absolute";
+  m["size"] = Value::array_of(std::array<double, 2>{size_mm, size_mm});
+  m["center"] = vec(plane.point);
+  m["normal"] = vec(plane.normal);
+  auto cp = Value::object();
+  cp["id"] = "1";
+  cp["label"] = "mandible symmetry plane";
+  cp["position"] = vec(plane.point);
+  cp["positionStatus"] = "defined";
+  m["controlPoints"] = Value::array();
+  m["controlPoints"].push_back(cp);
+  root["markups"] = Value::array();
+  root["markups"].push_back(m);
+  return root.dump(2) + "\n";
+}
+
+std::string csv_header() {
+  return "study,status,saf_score,saf_correspondence_free,mirror_mean_mm,mirror_rms_mm,mirror_p95_mm,mirror_max_mm,"
+         "ramus_height_diff_mm,body_length_diff_mm,gonial_angle_diff_deg,truncated,warnings\n";
+}
+
+std::string csv_row(const RunSummary& s, const std::string& status) {
+  auto q = [](const std::string& x) {
+    std::string o = "\"";
+    for (char c : x) o += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return o + "\"";
+  };
+  auto b = [&](const char* n) {
+    auto it = s.bilateral.find(n);
+    return it == s.bilateral.end() ? std::string() : fmt(it->second.diff, 3);
+  };
+  std::ostringstream o;
+  o << q(s.scan.path) << ',' << status << ',' << (s.saf.score >= 0 ? fmt(s.saf.score, 5) : "") << ','
+    << (s.saf.correspondence_free >= 0 ? fmt(s.saf.correspondence_free, 5) : "") << ',' << fmt(s.mirror.overall.mean_abs, 3)
+    << ',' << fmt(s.mirror.overall.rms, 3) << ',' << fmt(s.mirror.overall.p95, 3) << ',' << fmt(s.mirror.overall.max, 3)
+    << ',' << b("ramus_height_mm") << ',' << b("body_length_mm") << ',' << b("gonial_angle_deg") << ','
+    << (s.truncated ? "true" : "false") << ',' << s.warnings.size() << '\n';
+  return o.str();
+}
+
+std::string report_html(const RunSummary& s, const std::vector<std::string>& figures) {
+  const auto E = html_escape;
+  std::ostringstream h;
+  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
+    << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
+    << "<title>MandiSym mandibular asymmetry report</title>\n<style>\n"
+    << "body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em auto;max-width:1100px;"
+       "color:#1d2330;line-height:1.4;padding:0 1em}\n"
+    << "h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:2px solid #dde3ec;padding-bottom:.2em;margin-top:1.6em}\n"
+    << "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #dde3ec;padding:.25em .6em;text-align:right}"
+       "th{background:#f3f6fa}td:first-child,th:first-child{text-align:left}\n"
+    << ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}\n"
+    << ".cards{display:flex;flex-wrap:wrap;gap:1em}.card{border:1px solid #dde3ec;border-radius:8px;padding:.8em 1.2em;"
+       "min-width:200px}.card .v{font-size:1.8em;font-weight:600}.card .k{color:#5a6475;font-size:.9em}\n"
+    << "figure{display:inline-block;margin:.4em}figure img{max-width:340px;border:1px solid #dde3ec}"
+       "figcaption{font-size:.85em;color:#5a6475}\n.muted{color:#5a6475;font-size:.9em}\n</style></head><body>\n";
+  h << "<h1>Mandibular asymmetry report</h1>\n<p class=\"muted\">MandiSym " << E(s.tool_version) << " &middot; input "
+    << E(s.scan.kind) << " &middot; series " << E(s.scan.series_uid.empty() ? "-" : s.scan.series_uid)
+    << " &middot; study date " << E(s.scan.study_date.empty() ? "-" : s.scan.study_date) << "</p>\n";
+  h << "<p class=\"muted\">Grid " << s.grid.size[0] << " &times; " << s.grid.size[1] << " &times; " << s.grid.size[2]
+    << " voxels, spacing " << fmt(s.grid.spacing[0]) << " &times; " << fmt(s.grid.spacing[1]) << " &times; "
+    << fmt(s.grid.spacing[2]) << " mm. Pixel data SHA-256 <code>" << E(s.scan.pixel_sha256.substr(0, 16))
+    << "&hellip;</code></p>\n";
+  for (const auto& w : s.warnings) h << "<div class=\"warn\">&#9888; " << E(w) << "</div>\n";
+
+  h << "<h2>Headline</h2>\n<div class=\"cards\">\n";
+  h << "<div class=\"card\"><div class=\"k\">SAF asymmetry score</div><div class=\"v\">"
+    << (s.saf.score >= 0 ? fmt(s.saf.score, 3) : "n/a")
+    << "</div><div class=\"k\">rad; 0 = perfect symmetry (shape through the mirror correspondence)</div></div>\n";
+  h << "<div class=\"card\"><div class=\"k\">Mirror distance RMS / p95</div><div class=\"v\">" << fmt(s.mirror.overall.rms)
+    << " / " << fmt(s.mirror.overall.p95) << "</div><div class=\"k\">mm; surface vs its reflection</div></div>\n";
+  for (const char* n : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg"}) {
+    auto it = s.bilateral.find(n);
+    if (it == s.bilateral.end()) continue;
+    h << "<div class=\"card\"><div class=\"k\">" << E(n) << " L&minus;R</div><div class=\"v\">" << fmt(it->second.diff)
+      << "</div><div class=\"k\">L " << fmt(it->second.L) << ", R " << fmt(it->second.R) << "</div></div>\n";
+  }
+  h << "</div>\n<p class=\"muted\">Interpretation bands are not yet calibrated (see docs/method.md); compare "
+       "against a cohort or a pre-operative scan.</p>\n";
+
+  if (!figures.empty()) {
+    h << "<h2>Segmentation QC</h2>\n";
+    for (const auto& f : figures) {
+      std::ifstream in(f, std::ios::binary);
+      std::stringstream buf;
+      buf << in.rdbuf();
+      const std::string name = std::filesystem::path(f).stem().string();
+      h << "<figure><img alt=\"" << E(name) << "\" src=\"data:image/png;base64," << base64(buf.str())
+        << "\"><figcaption>" << E(name) << "</figcaption></figure>\n";
+    }
+  }
+
+  h << "<h2>Landmarks (LPS mm)</h2>\n<table><tr><th>landmark</th><th>x (L)</th><th>y (P)</th><th>z (S)</th>"
+       "<th>medio-lateral</th><th>antero-posterior</th><th>supero-inferior</th></tr>\n";
+  for (const auto& n : landmark_names()) {
+    const Vec3* p = s.landmarks.landmarks.find(n);
+    h << "<tr><td>" << E(n) << "</td>";
+    if (!p) {
+      h << "<td colspan=6>missing</td></tr>\n";
+      continue;
+    }
+    h << "<td>" << fmt((*p)[0]) << "</td><td>" << fmt((*p)[1]) << "</td><td>" << fmt((*p)[2]) << "</td>";
+    auto it = s.reference.asymmetry_vectors.find(n);
+    for (int a = 0; a < 3; ++a) h << "<td>" << (it != s.reference.asymmetry_vectors.end() ? fmt(it->second[a]) : "") << "</td>";
+    h << "</tr>\n";
+  }
+  h << "</table>\n<p class=\"muted\">Last three columns: detected minus symmetric reference configuration, in the "
+       "symmetry plane's frame (mm).</p>\n";
+
+  h << "<h2>Bilateral measures</h2>\n<table><tr><th>measure</th><th>left</th><th>right</th><th>L&minus;R</th>"
+       "<th>L/R</th></tr>\n";
+  for (const auto& [n, b] : s.bilateral)
+    h << "<tr><td>" << E(n) << "</td><td>" << fmt(b.L) << "</td><td>" << fmt(b.R) << "</td><td>" << fmt(b.diff)
+      << "</td><td>" << fmt(b.ratio, 3) << "</td></tr>\n";
+  h << "</table>\n";
+
+  h << "<h2>Regional asymmetry</h2>\n<table><tr><th>region</th><th>mirror mean |d| (mm)</th><th>RMS</th><th>p95</th>"
+       "<th>max</th><th>SAF map mean (rad)</th></tr>\n";
+  for (const auto& [n, st] : s.mirror.regions) {
+    auto it = s.saf_regions.find(n);
+    h << "<tr><td>" << E(n) << "</td><td>" << fmt(st.mean_abs) << "</td><td>" << fmt(st.rms) << "</td><td>"
+      << fmt(st.p95) << "</td><td>" << fmt(st.max) << "</td><td>"
+      << (it != s.saf_regions.end() ? fmt(it->second, 3) : "") << "</td></tr>\n";
+  }
+  h << "</table>\n";
+
+  h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
+  for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fmt(v, 4) << "</td></tr>\n";
+  h << "</table>\n<p class=\"muted\">Correspondence-free SAF (secondary): "
+    << (s.saf.correspondence_free >= 0 ? fmt(s.saf.correspondence_free, 4) : "n/a") << " rad.</p>\n";
+
+  h << "<h2>Surface and plane</h2>\n<table><tr><th>quantity</th><th>value</th></tr>\n"
+    << "<tr><td>segmentation volume (mm&sup3;)</td><td>" << fmt(s.seg_volume_mm3, 0) << "</td></tr>\n"
+    << "<tr><td>mesh vertices / faces</td><td>" << s.mesh.vertices << " / " << s.mesh.faces << "</td></tr>\n"
+    << "<tr><td>mesh area (mm&sup2;) / volume (mm&sup3;)</td><td>" << fmt(s.mesh.area_mm2, 0) << " / "
+    << fmt(s.mesh.volume_mm3, 0) << "</td></tr>\n"
+    << "<tr><td>closed / genus</td><td>" << (s.mesh.closed ? "yes" : "no") << " / " << s.mesh.genus << "</td></tr>\n"
+    << "<tr><td>plane point (LPS mm)</td><td>" << fmt(s.reference.plane.point[0]) << ", " << fmt(s.reference.plane.point[1])
+    << ", " << fmt(s.reference.plane.point[2]) << "</td></tr>\n"
+    << "<tr><td>plane normal</td><td>" << fmt(s.reference.plane.normal[0], 4) << ", " << fmt(s.reference.plane.normal[1], 4)
+    << ", " << fmt(s.reference.plane.normal[2], 4) << "</td></tr>\n"
+    << "<tr><td>landmark residual RMS (mm)</td><td>" << fmt(s.reference.rms_landmark_residual_mm) << "</td></tr>\n"
+    << "</table>\n";
+
+  h << "<h2>Methods</h2>\n<p>Bone threshold and connected components select the mandible (teeth included); VTK "
+       "flying edges builds its surface in patient LPS millimetres; landmarks (METHOD.md &sect;2) are extreme "
+       "points; a Ceres robust fit gives the symmetry plane and a symmetric reference configuration, refined by "
+       "mirror-ICP on the surface. The SAF score compares, through the mirror correspondence, the signed angle "
+       "between gradients of harmonic fields (cotangent Laplacian, Dirichlet disks of 2 mm at landmarks) with its "
+       "mirror configuration; the mirror surface distance follows Cevidanes et&nbsp;al. 2011 (reflection through "
+       "the plane, signed closest-point distance). The SAF and SRD definitions reconstruct Zhang (NUS, 2014).</p>\n";
+  h << "<h2>Provenance</h2>\n<table><tr><th>item</th><th>value</th></tr>\n";
+  h << "<tr><td>command</td><td>" << E(s.command_line) << "</td></tr>\n";
+  for (const auto& [k, v] : s.parameters) h << "<tr><td>" << E(k) << "</td><td>" << E(v) << "</td></tr>\n";
+  for (const auto& [n, t] : s.timings_s) h << "<tr><td>time: " << E(n) << "</td><td>" << fmt(t, 3) << " s</td></tr>\n";
+  h << "<tr><td>time: total</td><td>" << fmt(s.total_s, 3) << " s</td></tr>\n</table>\n</body></html>\n";
+  return h.str();
+}
+
+}  // namespace ms::reports

@@ -1,0 +1,27 @@
+// Output writers: results.json (OUTPUTS.md, schema 1.0), Slicer markups,
+// report.html, one-row CSV.
+#pragma once
+
+#include <string>
+
+#include "core/json.h"
+#include "reports/run_summary.h"
+
+namespace ms::reports {
+
+inline constexpr const char* kSchemaVersion = "1.0";
+
+json::Value results_json(const RunSummary& s);
+std::string landmarks_markup(const LandmarkSet& landmarks);   // Slicer Fiducial, LPS
+std::string plane_markup(const Plane& plane, double size_mm);  // Slicer Plane, LPS
+std::string report_html(const RunSummary& s, const std::vector<std::string>& figures);
+std::string csv_header();
+std::string csv_row(const RunSummary& s, const std::string& status);
+
+// HTML-escapes &, <, >, ", '.
+std::string html_escape(const std::string& s);
+
+// Writes text to path via a temporary file and rename (no half-written file).
+void write_text_atomic(const std::string& path, const std::string& text);
+
+}  // namespace ms::reports
