@@ -1,0 +1,193 @@
+// End to end: the mandisym binary on the bundled sample_dicom/ series.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "core/json.h"
+
+namespace fs = std::filesystem;
+using ms::json::Value;
+
+namespace {
+
+const std::string kBin = MANDISYM_BINARY;
+const fs::path kSamples = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
+
+fs::path temp_dir(const std::string& name) {
+  fs::path p = fs::temp_directory_path() / ("mandisym_e2e_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(p);
+  return p;
+}
+
+// Runs the binary; returns its exit code; stderr goes to err.
+int run(const std::string& args, std::string* err = nullptr) {
+  const fs::path errf = temp_dir("stderr.txt");
+  const std::string cmd = kBin + " " + args + " > /dev/null 2> " + errf.string();
+  const int st = std::system(cmd.c_str());
+  if (err) {
+    std::ifstream f(errf);
+    std::stringstream s;
+    s << f.rdbuf();
+    *err = s.str();
+  }
+  fs::remove(errf);
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+Value load(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream s;
+  s << f.rdbuf();
+  return Value::parse(s.str());
+}
+
+// One run per sample, shared by the tests below.
+const Value& results(const std::string& sample) {
+  static std::map<std::string, Value> cache;
+  auto it = cache.find(sample);
+  if (it != cache.end()) return it->second;
+  const fs::path out = temp_dir("run_" + sample);
+  const int code = run("run " + (kSamples / sample / "dicom").string() + " -o " + out.string() + " --quiet");
+  EXPECT_EQ(code, 0) << sample;
+  Value v = fs::exists(out / "results.json") ? load(out / "results.json") : Value();
+  return cache[sample] = v;
+}
+
+}  // namespace
+
+TEST(EndToEnd, WritesEveryOutputOfTheContract) {
+  const fs::path out = temp_dir("files");
+  ASSERT_EQ(run("run " + (kSamples / "symmetric" / "dicom").string() + " -o " + out.string() + " -q"), 0);
+  for (const char* f : {"report.html", "results.json", "mandible_mask.nii.gz", "mandible.vtp", "mandible.stl",
+                        "landmarks.mrk.json", "symmetry_plane.mrk.json", "log.txt", "results.csv"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  EXPECT_TRUE(fs::is_directory(out / "qc"));
+  // No staging leftovers.
+  for (const auto& e : fs::directory_iterator(out))
+    EXPECT_EQ(e.path().filename().string().find(".mandisym-partial"), std::string::npos);
+  const Value lm = load(out / "landmarks.mrk.json");
+  EXPECT_EQ(lm.at("markups")[0].at("coordinateSystem").as_string(), "LPS");
+  EXPECT_EQ(lm.at("markups")[0].at("controlPoints").size(), 8u);
+  const Value pl = load(out / "symmetry_plane.mrk.json");
+  EXPECT_EQ(pl.at("markups")[0].at("type").as_string(), "Plane");
+  std::ifstream html(out / "report.html");
+  std::stringstream s;
+  s << html.rdbuf();
+  EXPECT_EQ(s.str().find("http://"), std::string::npos);  // self-contained
+  EXPECT_NE(s.str().find("data:image/png;base64,"), std::string::npos);
+  fs::remove_all(out);
+}
+
+TEST(EndToEnd, ResultsJsonHasEveryKeyOfOutputsMd) {
+  const Value& r = results("symmetric");
+  ASSERT_TRUE(r.is_object());
+  const std::map<std::string, std::vector<std::string>> required = {
+      {"", {"schema_version", "tool", "input", "segmentation", "mesh", "landmarks", "symmetry_plane", "scores",
+            "timings_s", "warnings"}},
+      {"tool", {"name", "version"}},
+      {"input", {"path", "kind", "series_uid", "modality", "size_voxels", "spacing_mm", "sha256_of_pixel_data"}},
+      {"segmentation", {"method", "voxels", "volume_mm3", "truncated"}},
+      {"mesh", {"vertices", "faces", "area_mm2", "volume_mm3", "genus", "closed"}},
+      {"landmarks", {"Co_L", "Co_R", "Cr_L", "Cr_R", "Go_L", "Go_R", "Me", "Pog"}},
+      {"symmetry_plane", {"point", "normal", "rms_landmark_residual_mm"}},
+      {"scores", {"saf", "mirror", "bilateral"}},
+      {"timings_s", {"total"}},
+  };
+  for (const auto& [section, keys] : required) {
+    const Value& obj = section.empty() ? r : r.at(section);
+    for (const auto& k : keys) EXPECT_TRUE(obj.contains(k)) << section << "." << k;
+  }
+  const Value& s = r.at("scores");
+  for (const char* k : {"score", "per_configuration", "regions"}) EXPECT_TRUE(s.at("saf").contains(k)) << k;
+  for (const char* k : {"mean_mm", "signed_mean_mm", "rms_mm", "p95_mm", "max_mm", "pct_area_over_1mm",
+                        "pct_area_over_2mm", "regions"})
+    EXPECT_TRUE(s.at("mirror").contains(k)) << k;
+  for (const char* k : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg"})
+    for (const char* side : {"L", "R", "diff"}) EXPECT_TRUE(s.at("bilateral").at(k).contains(side)) << k << side;
+  EXPECT_EQ(r.at("schema_version").as_string(), "1.0");
+  EXPECT_EQ(r.at("input").at("kind").as_string(), "dicom");
+  EXPECT_EQ(r.at("input").at("modality").as_string(), "CT");
+  EXPECT_TRUE(r.at("mesh").at("closed").as_bool());
+  for (const auto& n : {"Co_L", "Me"}) EXPECT_EQ(r.at("landmarks").at(n).size(), 3u);
+}
+
+TEST(EndToEnd, SymmetricSampleMatchesItsGroundTruthPlane) {
+  const Value& r = results("symmetric");
+  const Value gt = load(kSamples / "symmetric" / "ground_truth" / "symmetry_plane.json");
+  double cosang = 0;
+  for (std::size_t a = 0; a < 3; ++a)
+    cosang += r.at("symmetry_plane").at("normal")[a].as_number() * gt.at("normal")[a].as_number();
+  EXPECT_GT(cosang, std::cos(1.0 * 3.14159265 / 180));  // within 1 degree
+  double off = 0;
+  for (std::size_t a = 0; a < 3; ++a)
+    off += (r.at("symmetry_plane").at("point")[a].as_number() - gt.at("point")[a].as_number()) * gt.at("normal")[a].as_number();
+  EXPECT_LT(std::abs(off), 0.5);
+  EXPECT_LT(r.at("scores").at("mirror").at("mean_mm").as_number(), 0.3);
+}
+
+TEST(EndToEnd, AsymmetricSampleScoresHigherOnSafAndMirrorDistance) {
+  const Value& sym = results("symmetric");
+  const Value& asym = results("ramus_L_plus4mm");
+  ASSERT_TRUE(sym.is_object());
+  ASSERT_TRUE(asym.is_object());
+  const double saf_s = sym.at("scores").at("saf").at("score").as_number();
+  const double saf_a = asym.at("scores").at("saf").at("score").as_number();
+  EXPECT_GT(saf_a, saf_s);
+  const double mir_s = sym.at("scores").at("mirror").at("rms_mm").as_number();
+  const double mir_a = asym.at("scores").at("mirror").at("rms_mm").as_number();
+  EXPECT_GT(mir_a, mir_s + 0.2);
+  // The left ramus is the longer one, by roughly the imposed amount.
+  const double diff = asym.at("scores").at("bilateral").at("ramus_height_mm").at("diff").as_number();
+  EXPECT_GT(diff, 2.0);
+  EXPECT_LT(diff, 6.0);
+  const double sym_diff = sym.at("scores").at("bilateral").at("ramus_height_mm").at("diff").as_number();
+  EXPECT_LT(std::abs(sym_diff), 1.0);
+}
+
+TEST(EndToEnd, MissingInputExitsWithCode3AndWritesNothing) {
+  const fs::path out = temp_dir("missing");
+  std::string err;
+  EXPECT_EQ(run("run /nonexistent/scan -o " + out.string(), &err), 3);
+  EXPECT_NE(err.find("/nonexistent/scan"), std::string::npos);
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;  // one line
+  EXPECT_FALSE(fs::exists(out / "results.json"));
+}
+
+TEST(EndToEnd, NonDicomFolderExitsWithCode4) {
+  const fs::path in = temp_dir("junk_in"), out = temp_dir("junk_out");
+  fs::create_directories(in);
+  std::ofstream(in / "a.dcm") << "this is not DICOM";
+  std::string err;
+  EXPECT_EQ(run("run " + in.string() + " -o " + out.string(), &err), 4);
+  EXPECT_FALSE(fs::exists(out / "results.json"));
+  EXPECT_FALSE(fs::exists(out / "report.html"));
+  fs::remove_all(in);
+}
+
+TEST(EndToEnd, UsageErrorsExitWithCode2) {
+  EXPECT_EQ(run("run"), 2);
+  EXPECT_EQ(run("frobnicate"), 2);
+  EXPECT_EQ(run("run x -o y --no-such-option"), 2);
+  EXPECT_EQ(run("phantom -o /tmp/x --noise abc"), 2);
+}
+
+TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
+  const fs::path out = temp_dir("phantom");
+  ASSERT_EQ(run("phantom -o " + out.string() + " --spacing 2 --fov 120,110,110 --seed 5 --ramus-R 3 --no-preview"), 0);
+  const Value lm = load(out / "ground_truth" / "landmarks.json");
+  EXPECT_EQ(lm.at("coordinate_system").as_string(), "LPS");
+  EXPECT_EQ(lm.at("landmarks").size(), 8u);
+  const Value asym = load(out / "ground_truth" / "asymmetry.json");
+  EXPECT_EQ(asym.at("right").at("ramus_height_mm").as_number(), 3.0);
+  EXPECT_TRUE(fs::exists(out / "ground_truth" / "mandible_mask.nii.gz"));
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(out / "dicom")) n += e.path().extension() == ".dcm";
+  EXPECT_EQ(n, 55u);  // 110 mm / 2 mm slices
+  fs::remove_all(out);
+}
