@@ -1,0 +1,284 @@
+// surface::mesh_from_mask and surface::measure on analytic shapes.
+//
+// The ellipsoid is voxelised on a grid with anisotropic spacing and an oblique
+// direction matrix, so a mistake in the index -> LPS mapping (spacing order,
+// transposed direction, lost crop offset, ignored handedness) moves the mesh
+// away from the analytic surface and fails the distance / volume checks.
+#include "surface/surface.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "core/error.h"
+#include "core/types.h"
+
+namespace {
+
+using ms::Vec3;
+using ms::operator+;
+using ms::operator-;
+using ms::operator*;
+constexpr double kPi = 3.14159265358979323846;
+
+using Mat3 = std::array<double, 9>;  // row-major
+
+// Rotation by angle about a unit axis (Rodrigues).
+Mat3 rotation(const Vec3& axis_in, double angle) {
+  const Vec3 k = ms::normalized(axis_in);
+  const double c = std::cos(angle), s = std::sin(angle), t = 1 - c;
+  return {t * k[0] * k[0] + c,        t * k[0] * k[1] - s * k[2], t * k[0] * k[2] + s * k[1],
+          t * k[0] * k[1] + s * k[2], t * k[1] * k[1] + c,        t * k[1] * k[2] - s * k[0],
+          t * k[0] * k[2] - s * k[1], t * k[1] * k[2] + s * k[0], t * k[2] * k[2] + c};
+}
+
+double det3(const Mat3& m) {
+  return m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) + m[2] * (m[3] * m[7] - m[4] * m[6]);
+}
+
+struct Ellipsoid {
+  Vec3 centre{12.5, -7.0, 31.0};  // off-origin on purpose
+  Vec3 semi{20.0, 14.0, 10.0};
+  double implicit(const Vec3& p) const {  // (x/a)^2 + (y/b)^2 + (z/c)^2 - 1
+    double s = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double t = (p[a] - centre[a]) / semi[a];
+      s += t * t;
+    }
+    return s - 1;
+  }
+  // Upper bound of the distance from p to the ellipsoid surface: the radial
+  // projection centre + (p - centre)/sqrt(F+1) lies on the surface.
+  double distance_bound(const Vec3& p) const {
+    const Vec3 d = p - centre;
+    const double scale = 1.0 / std::sqrt(implicit(p) + 1.0);
+    return ms::norm(d) * std::abs(1.0 - scale);
+  }
+  double volume() const { return 4.0 / 3.0 * kPi * semi[0] * semi[1] * semi[2]; }
+};
+
+// A grid covering the ellipsoid with the given direction matrix, its centre
+// mapped onto the ellipsoid centre; voxel inside iff its centre is inside.
+ms::Mask ellipsoid_mask(const Ellipsoid& e, const Vec3& spacing, const Mat3& direction) {
+  ms::Mask m;
+  m.geom.spacing = spacing;
+  m.geom.direction = direction;
+  const double reach = *std::max_element(e.semi.begin(), e.semi.end()) + 4.0;  // covers any rotation
+  Vec3 half{};
+  for (int a = 0; a < 3; ++a) {
+    m.geom.size[a] = static_cast<std::size_t>(std::ceil(2 * reach / spacing[a])) + 1;
+    half[a] = 0.5 * static_cast<double>(m.geom.size[a] - 1) * spacing[a];
+  }
+  Vec3 rot_half{0, 0, 0};
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) rot_half[r] += direction[3 * r + c] * half[c];
+  m.geom.origin = e.centre - rot_half;
+  m.data.assign(m.geom.voxel_count(), 0);
+  for (std::size_t k = 0; k < m.geom.size[2]; ++k)
+    for (std::size_t j = 0; j < m.geom.size[1]; ++j)
+      for (std::size_t i = 0; i < m.geom.size[0]; ++i) {
+        const Vec3 p = m.geom.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+        m.data[m.geom.linear(i, j, k)] = e.implicit(p) <= 0 ? 1 : 0;
+      }
+  return m;
+}
+
+// Area-weighted mean of n_f · (centroid_f - c): positive iff the faces point
+// away from c on average (independent of the signed-volume formula).
+double mean_outward_component(const ms::Mesh& mesh, const Vec3& c) {
+  double num = 0, den = 0;
+  for (const auto& f : mesh.faces) {
+    const Vec3 &a = mesh.vertices[f[0]], &b = mesh.vertices[f[1]], &d = mesh.vertices[f[2]];
+    const Vec3 cr = ms::cross(b - a, d - a);
+    const double area2 = ms::norm(cr);
+    if (area2 == 0) continue;
+    const Vec3 centroid = (1.0 / 3.0) * (a + b + d);
+    num += ms::dot(cr, centroid - c);  // = area2 * n·(centroid - c)
+    den += area2;
+  }
+  return num / den;
+}
+
+const Vec3 kSpacing{0.7, 0.8, 1.1};
+const Vec3 kAxis{1.0, 2.0, 3.0};
+const double kAngle = 25.0 * kPi / 180.0;
+
+void check_ellipsoid_mesh(const Ellipsoid& e, const ms::surface::Result& r) {
+  const auto& s = r.stats;
+  EXPECT_TRUE(s.closed);
+  EXPECT_TRUE(s.manifold);
+  EXPECT_EQ(s.genus, 0);
+  EXPECT_EQ(s.vertices, r.mesh.vertices.size());
+  EXPECT_EQ(s.faces, r.mesh.faces.size());
+  EXPECT_GT(s.volume_mm3, 0);
+  // The reported stats must describe the returned mesh (after any flip).
+  const auto again = ms::surface::measure(r.mesh);
+  EXPECT_NEAR(again.volume_mm3, s.volume_mm3, 1e-6 * s.volume_mm3);
+  EXPECT_NEAR(again.area_mm2, s.area_mm2, 1e-6 * s.area_mm2);
+  // Voxelisation at the voxel centres is unbiased for a smooth convex body;
+  // 3 % leaves room for the smoothing shrinkage at curvature radius >= 5 mm.
+  EXPECT_NEAR(s.volume_mm3, e.volume(), 0.03 * e.volume());
+
+  // Every vertex lies on the analytic surface up to the voxel resolution:
+  // the voxel-centre staircase is within half a voxel diagonal (0.77 mm here)
+  // of the true surface, so the largest spacing (1.1 mm) is a safe bound.
+  const double max_spacing = *std::max_element(kSpacing.begin(), kSpacing.end());
+  double worst = 0, sum = 0;
+  for (const auto& v : r.mesh.vertices) {
+    const double d = e.distance_bound(v);
+    worst = std::max(worst, d);
+    sum += d;
+  }
+  EXPECT_LE(worst, max_spacing);
+  // ... and on average well inside a voxel (a systematic offset, e.g. a half
+  // voxel shift of the crop, would show here first).
+  EXPECT_LT(sum / static_cast<double>(r.mesh.vertices.size()), 0.25 * max_spacing);
+  // Mesh centroid of the vertices ≈ ellipsoid centre.
+  Vec3 c{0, 0, 0};
+  for (const auto& v : r.mesh.vertices) c = c + v;
+  c = (1.0 / static_cast<double>(r.mesh.vertices.size())) * c;
+  EXPECT_LT(ms::distance(c, e.centre), 0.5 * max_spacing);
+
+  // Outward orientation checked without the signed volume.
+  EXPECT_GT(mean_outward_component(r.mesh, e.centre), 0.5 * *std::min_element(e.semi.begin(), e.semi.end()));
+}
+
+TEST(Surface, ObliqueAnisotropicEllipsoidIsClosedOutwardAndAccurate) {
+  const Ellipsoid e;
+  const Mat3 d = rotation(kAxis, kAngle);
+  ASSERT_NEAR(det3(d), 1.0, 1e-12);
+  const auto r = ms::surface::mesh_from_mask(ellipsoid_mask(e, kSpacing, d));
+  check_ellipsoid_mesh(e, r);
+}
+
+TEST(Surface, MirrorHandedGridStillGivesOutwardMesh) {
+  const Ellipsoid e;
+  Mat3 d = rotation(kAxis, kAngle);
+  for (int r = 0; r < 3; ++r) d[3 * r] = -d[3 * r];  // flip the i axis: det = -1
+  ASSERT_NEAR(det3(d), -1.0, 1e-12);
+  const auto r = ms::surface::mesh_from_mask(ellipsoid_mask(e, kSpacing, d));
+  check_ellipsoid_mesh(e, r);
+}
+
+TEST(Surface, DecimationKeepsAClosedOutwardSurface) {
+  const Ellipsoid e;
+  ms::surface::Options opt;
+  opt.target_faces = 3000;
+  const auto r = ms::surface::mesh_from_mask(ellipsoid_mask(e, kSpacing, rotation(kAxis, kAngle)), opt);
+  EXPECT_LE(r.stats.faces, 3000u * 11 / 10);
+  EXPECT_TRUE(r.stats.closed);
+  EXPECT_TRUE(r.stats.manifold);
+  EXPECT_EQ(r.stats.genus, 0);
+  EXPECT_NEAR(r.stats.volume_mm3, e.volume(), 0.03 * e.volume());
+  EXPECT_GT(mean_outward_component(r.mesh, e.centre), 0);
+}
+
+TEST(Surface, EmptyMaskThrows) {
+  ms::Mask m;
+  m.geom.size = {8, 9, 10};
+  m.data.assign(m.geom.voxel_count(), 0);
+  EXPECT_THROW(ms::surface::mesh_from_mask(m), ms::Error);
+  try {
+    ms::surface::mesh_from_mask(m);
+  } catch (const ms::Error& err) {
+    EXPECT_EQ(err.code(), ms::ExitCode::GeometryFailed);
+  }
+}
+
+TEST(Surface, SingleVoxelMaskGivesAClosedSurface) {
+  // A one-voxel mask touching the grid corner: the crop padding must close it.
+  ms::Mask m;
+  m.geom.size = {4, 4, 4};
+  m.data.assign(m.geom.voxel_count(), 0);
+  m.data[m.geom.linear(0, 0, 0)] = 1;
+  ms::surface::Options opt;
+  opt.smoothing_sigma_mm = 0.0;
+  const auto r = ms::surface::mesh_from_mask(m, opt);
+  EXPECT_TRUE(r.stats.closed);
+  EXPECT_EQ(r.stats.genus, 0);
+  EXPECT_GT(r.stats.volume_mm3, 0);
+  for (const auto& v : r.mesh.vertices)
+    for (int a = 0; a < 3; ++a) EXPECT_LE(std::abs(v[a]), 1.0);  // around voxel (0,0,0) at the origin
+}
+
+// Unit tetrahedron with outward (counter-clockwise seen from outside) faces.
+ms::Mesh unit_tetrahedron(const Vec3& offset) {
+  ms::Mesh m;
+  m.vertices = {offset + Vec3{0, 0, 0}, offset + Vec3{1, 0, 0}, offset + Vec3{0, 1, 0}, offset + Vec3{0, 0, 1}};
+  m.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  return m;
+}
+
+TEST(SurfaceMeasure, UnitTetrahedron) {
+  for (const Vec3& off : {Vec3{0, 0, 0}, Vec3{-30.0, 12.5, 100.0}}) {  // translation-invariant when closed
+    const ms::Mesh m = unit_tetrahedron(off);
+    const auto s = ms::surface::measure(m);
+    EXPECT_TRUE(s.closed);
+    EXPECT_TRUE(s.manifold);
+    EXPECT_EQ(s.genus, 0);
+    EXPECT_EQ(s.vertices, 4u);
+    EXPECT_EQ(s.faces, 4u);
+    EXPECT_NEAR(s.volume_mm3, 1.0 / 6.0, 1e-9);
+    EXPECT_NEAR(s.area_mm2, 1.5 + std::sqrt(3.0) / 2.0, 1e-12);
+    EXPECT_GT(mean_outward_component(m, off + Vec3{0.25, 0.25, 0.25}), 0);
+
+    ms::Mesh flipped = m;
+    for (auto& f : flipped.faces) std::swap(f[1], f[2]);
+    const auto sf = ms::surface::measure(flipped);
+    EXPECT_TRUE(sf.closed);
+    EXPECT_EQ(sf.genus, 0);
+    EXPECT_NEAR(sf.volume_mm3, -1.0 / 6.0, 1e-9);
+    EXPECT_NEAR(sf.area_mm2, s.area_mm2, 1e-12);
+  }
+}
+
+TEST(SurfaceMeasure, OpenAndNonManifoldMeshes) {
+  ms::Mesh open = unit_tetrahedron({0, 0, 0});
+  open.faces.pop_back();
+  const auto so = ms::surface::measure(open);
+  EXPECT_FALSE(so.closed);
+  EXPECT_TRUE(so.manifold);
+  EXPECT_EQ(so.genus, -1);
+
+  // A third triangle on edge (0,1): not manifold, not closed.
+  ms::Mesh fin = unit_tetrahedron({0, 0, 0});
+  fin.vertices.push_back({0.5, -1, 0.5});
+  fin.faces.push_back({0, 1, 4});
+  const auto sn = ms::surface::measure(fin);
+  EXPECT_FALSE(sn.manifold);
+  EXPECT_FALSE(sn.closed);
+
+  const auto se = ms::surface::measure(ms::Mesh{});
+  EXPECT_FALSE(se.closed);
+  EXPECT_EQ(se.genus, -1);
+}
+
+TEST(SurfaceMeasure, TorusHasGenusOne) {
+  // Quad torus (n x m grid of vertices), each quad split into two triangles.
+  const int n = 24, m = 12;
+  const double R = 10, r = 3;
+  ms::Mesh t;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      const double u = 2 * kPi * i / n, v = 2 * kPi * j / m;
+      t.vertices.push_back({(R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u), r * std::sin(v)});
+    }
+  auto id = [&](int i, int j) { return ((i + n) % n) * m + (j + m) % m; };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      t.faces.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      t.faces.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  const auto s = ms::surface::measure(t);
+  EXPECT_TRUE(s.closed);
+  EXPECT_TRUE(s.manifold);
+  EXPECT_EQ(s.genus, 1);
+  // |volume| close to 2π²Rr² (inscribed polyhedron: slightly smaller).
+  const double v = 2 * kPi * kPi * R * r * r;
+  EXPECT_NEAR(std::abs(s.volume_mm3), v, 0.06 * v);
+}
+
+}  // namespace
