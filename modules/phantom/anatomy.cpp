@@ -8,6 +8,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kFar = 1e9;
+constexpr double kRamusTiltDeg = 10.0;
 
 // Catmull-Rom resampling of a 2D control polygon into n points per span.
 std::vector<sdf::P2> catmull_rom(const std::vector<sdf::P2>& c, int n) {
@@ -69,16 +70,21 @@ Vec3 crossing(const F& f, Vec3 a, Vec3 b) {
 
 }  // namespace
 
+// The ramus mid-surface splays outward towards the condyle and turns so that
+// its anterior border lies medial to its posterior border (the rami diverge
+// posteriorly in axial view).
+double SideModel::mid_x(double f, double u) const {
+  return x_at_corner + (x_at_top - x_at_corner) * (u / ramus_top) - f * std::tan(10.0 * 3.14159265358979323846 / 180.0);
+}
+
 Vec3 SideModel::local(const Vec3& p) const {
   const double u = p[2] - corner[2];
   const double f = -(p[1] - corner[1]);
-  const double xm = x_at_corner + (x_at_top - x_at_corner) * (u / ramus_top);
-  return {f, u, s * p[0] - xm};
+  return {f, u, s * p[0] - mid_x(f, u)};
 }
 
 Vec3 SideModel::to_h(double f, double u, double n) const {
-  const double xm = x_at_corner + (x_at_top - x_at_corner) * (u / ramus_top);
-  return {s * (xm + n), corner[1] - f, corner[2] + u};
+  return {s * (mid_x(f, u) + n), corner[1] - f, corner[2] + u};
 }
 
 Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
@@ -119,17 +125,19 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
     m.x_at_top = m.x_at_corner + 5.0;
     // Ramus outline (f anterior, u superior) relative to the angle corner:
     // angle, anterior border, coronoid, sigmoid notch, condylar neck, posterior border.
-    std::vector<sdf::P2> poly = {{0, 0},    {34, 4},   {28, 18},  {26, 32},  {28, 44},  {28, 51},
-                                 {25, 56},  {22, 52},  {17, 46},  {12, 42},  {7, 40.5}, {2, 43},
+    std::vector<sdf::P2> poly = {{0, 0},    {30, -2},  {28, 18},  {26, 32},  {28, 42},  {27, 47},
+                                 {24, 51},  {21, 48},  {16, 44},  {12, 41.5}, {7, 40.5}, {2, 43},
                                  {-2, 48},  {-4, 52},  {-13, 52}, {-15, 46}, {-9, 22}};
     sdf::P2 head{-8.5, 55.0};
-    sdf::P2 cor{25, 56};
+    sdf::P2 cor{24, 51};  // coronoid tip ~3 mm below the condylion after the tilt
     sdf::P2 post_top{-15, 46}, post_low{0, 0};
     // Ramus height: stretch everything above the angle vertically.
     const double h0 = 60.0;  // condylion height above the corner, unmodified
     const double scale = (h0 + a.ramus_height_mm) / h0;
-    // Gonial angle: rotate about the corner, positive opens the angle (top tilts back).
-    const double ang = a.gonial_angle_deg * kPi / 180.0;
+    // Gonial angle: rotate about the corner, positive opens the angle (top
+    // tilts back). The unmodified ramus is tilted back 10° so the Co–Go–Me
+    // angle is about 120°, an adult norm.
+    const double ang = (kRamusTiltDeg + a.gonial_angle_deg) * kPi / 180.0;
     auto xf = [&](sdf::P2 q) {
       q.y *= scale;
       const double c = std::cos(ang), sn = std::sin(ang);
@@ -234,15 +242,16 @@ Anatomy::ArchHit Anatomy::arch_distance(double x, double y) const {
 }
 
 double Anatomy::z_crest(double t) const {
-  if (t < 0.72) return -44.0 + 6.0 * t;
-  return lerp(-44.0 + 6.0 * 0.72, -47.0, (t - 0.72) / 0.28);
+  // Alveolar crest rising slightly towards the molars; behind them the body
+  // keeps its height and merges into the ramus (external oblique line).
+  return -44.0 + 6.0 * std::min(t, 0.72);
 }
 
 double Anatomy::body(const Vec3& p) const {
   const ArchHit h = arch_distance(p[0], p[1]);
   const double zl = z_lower(h.t), zu = z_crest(h.t);
   const double hfrac = sdf::clamp01((p[2] - zl) / (zu - zl));
-  const double base_hw = h.t < 0.5 ? lerp(7.0, 6.0, h.t / 0.5) : lerp(6.0, 4.6, (h.t - 0.5) / 0.5);
+  const double base_hw = h.t < 0.5 ? lerp(7.0, 6.0, h.t / 0.5) : lerp(6.0, 5.6, (h.t - 0.5) / 0.5);
   const double hw = base_hw * (1.0 - 0.35 * hfrac);
   const double r = 2.0;
   const double dz = std::max(zl - p[2], p[2] - zu) + r;
@@ -269,7 +278,7 @@ double Anatomy::mandible_bone(const Vec3& p) const {
   double d = body(p);
   d = sdf::smin(d, sdf::ellipsoid(p - chin_center_, chin_axes_), 3.0);
   const SideModel& m = p[0] >= 0 ? side_[0] : side_[1];
-  d = sdf::smin(d, ramus(m, p), 4.0);
+  d = sdf::smin(d, ramus(m, p), 6.0);
   // The other ramus matters only near the midline (never, in practice), skip it.
   return d;
 }
@@ -314,7 +323,7 @@ double Anatomy::skull_base(const Vec3& p) const {
   // eminences; the glenoid fossae are carved by the mandible grown by the joint space.
   if (std::abs(p[0]) > 75 || p[1] < -30 || p[1] > 50 || p[2] < -12 || p[2] > 34) return kFar;
   double d = sdf::round_box(p - Vec3{0, 14, 14}, {68, 34, 14}, 4.0);
-  for (double s : {1.0, -1.0}) d = sdf::smin(d, sdf::ellipsoid(p - Vec3{s * 50, -13, 1}, {11, 6, 5}), 2.0);
+  for (double s : {1.0, -1.0}) d = sdf::smin(d, sdf::ellipsoid(p - Vec3{s * 50, -3, 1}, {11, 6, 5}), 2.0);
   if (d > 3.0) return d;
   return std::max(d, p_.joint_space_mm - mandible(p));
 }
@@ -342,7 +351,7 @@ double Anatomy::maxilla(const Vec3& p) const {
     h.d = std::sqrt(b2) * 1.045;
   }
   double d = kFar;
-  if (h.t < 0.8) {
+  if (h.t < 0.68) {  // the tuberosity ends just behind the second molar
     const double zb = z_occlusal(h.t) + 8.5, zt = zo + 26.0;
     d = sdf::extrude(h.d - 6.0 + 2.0, std::max(zb - p[2], p[2] - zt) + 2.0) - 2.0;
   }

@@ -37,6 +37,7 @@ struct SideModel {
   // (f, u, n) of a point in H: f anterior, u superior, n lateral offset from the ramus mid-surface.
   Vec3 local(const Vec3& p) const;
   Vec3 to_h(double f, double u, double n) const;
+  double mid_x(double f, double u) const;
 };
 
 class Anatomy {
