@@ -60,6 +60,22 @@ json::Value stats_json(const asymmetry::DistanceStats& s, bool full) {
   return o;
 }
 
+// Slicer markups file skeleton and node header (LPS, mm).
+json::Value markup_root() {
+  auto root = json::Value::object();
+  root["@schema"] =
+      "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/"
+      "markups-schema-v1.0.3.json#";
+  return root;
+}
+json::Value markup_node(const char* type) {
+  auto m = json::Value::object();
+  m["type"] = type;
+  m["coordinateSystem"] = "LPS";
+  m["coordinateUnits"] = "mm";
+  return m;
+}
+
 }  // namespace
 
 std::string html_escape(const std::string& s) {
@@ -192,14 +208,8 @@ json::Value results_json(const RunSummary& s) {
 
 std::string landmarks_markup(const LandmarkSet& lms) {
   using json::Value;
-  auto root = Value::object();
-  root["@schema"] =
-      "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/"
-      "markups-schema-v1.0.3.json#";
-  auto m = Value::object();
-  m["type"] = "Fiducial";
-  m["coordinateSystem"] = "LPS";
-  m["coordinateUnits"] = "mm";
+  Value root = markup_root();
+  Value m = markup_node("Fiducial");
   m["controlPoints"] = Value::array();
   int id = 1;
   for (const auto& n : landmark_names()) {
@@ -218,14 +228,8 @@ std::string landmarks_markup(const LandmarkSet& lms) {
 
 std::string plane_markup(const Plane& plane, double size_mm) {
   using json::Value;
-  auto root = Value::object();
-  root["@schema"] =
-      "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/"
-      "markups-schema-v1.0.3.json#";
-  auto m = Value::object();
-  m["type"] = "Plane";
-  m["coordinateSystem"] = "LPS";
-  m["coordinateUnits"] = "mm";
+  Value root = markup_root();
+  Value m = markup_node("Plane");
   m["planeType"] = "pointNormal";
   m["sizeMode"] = "absolute";
   m["size"] = Value::array_of(std::array<double, 2>{size_mm, size_mm});

@@ -26,6 +26,7 @@
 
 #include "core/error.h"
 #include "core/sha256.h"
+#include "io/itk_geometry.h"
 
 namespace fs = std::filesystem;
 
@@ -65,42 +66,6 @@ std::string trim(std::string s) {
   while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
   while (!s.empty() && s.front() == ' ') s.erase(s.begin());
   return s;
-}
-
-template <class ImageT>
-Geometry geometry_of(const ImageT* img) {
-  Geometry g;
-  const auto region = img->GetLargestPossibleRegion();
-  for (int a = 0; a < 3; ++a) {
-    g.size[a] = region.GetSize()[a];
-    g.spacing[a] = img->GetSpacing()[a];
-    g.origin[a] = img->GetOrigin()[a];
-  }
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) g.direction[3 * r + c] = img->GetDirection()(r, c);
-  return g;
-}
-
-template <class ImageT>
-void apply_geometry(ImageT* img, const Geometry& g) {
-  typename ImageT::RegionType region;
-  typename ImageT::SizeType size;
-  typename ImageT::SpacingType spacing;
-  typename ImageT::PointType origin;
-  typename ImageT::DirectionType dir;
-  for (int a = 0; a < 3; ++a) {
-    size[a] = g.size[a];
-    spacing[a] = g.spacing[a];
-    origin[a] = g.origin[a];
-  }
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) dir(r, c) = g.direction[3 * r + c];
-  region.SetSize(size);
-  img->SetRegions(region);
-  img->SetSpacing(spacing);
-  img->SetOrigin(origin);
-  img->SetDirection(dir);
-  img->Allocate();
 }
 
 std::string dict_string(const itk::MetaDataDictionary& d, const std::string& tag) {
@@ -245,8 +210,7 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
 
 void write_mask(const Mask& mask, const std::string& path) {
   register_factories();
-  auto img = MaskImage::New();
-  apply_geometry(img.GetPointer(), mask.geom);
+  auto img = make_image<MaskImage>(mask.geom);
   std::copy(mask.data.begin(), mask.data.end(), img->GetBufferPointer());
   auto writer = itk::ImageFileWriter<MaskImage>::New();
   writer->SetInput(img);
@@ -282,8 +246,7 @@ std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, co
   using ShortImage = itk::Image<short, 3>;
   const Geometry& g = ct.geom;
 
-  auto img = ShortImage::New();
-  apply_geometry(img.GetPointer(), g);
+  auto img = make_image<ShortImage>(g);
   short* buf = img->GetBufferPointer();
   for (std::size_t i = 0; i < ct.hu.size(); ++i) {
     const float v = std::round(ct.hu[i]);

@@ -54,6 +54,14 @@ struct MirrorResidual {
   }
 };
 
+ceres::Solver::Options solver_options(int max_iterations) {
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::DENSE_QR;  // 4 to ~20 unknowns
+  o.max_num_iterations = max_iterations;
+  o.logging_type = ceres::SILENT;
+  return o;
+}
+
 const char* kPairs[3] = {"Co", "Cr", "Go"};
 const char* kMid[2] = {"Me", "Pog"};
 
@@ -98,11 +106,6 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
   // ---- stage 1: landmarks vs symmetric configuration ----
   std::vector<std::array<double, 3>> q_pair, q_mid;
   std::vector<std::string> pair_names, mid_names;
-  ceres::Problem problem;
-  problem.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
-  problem.AddParameterBlock(d, 1);
-  q_pair.reserve(3);
-  q_mid.reserve(2);
   for (const char* p : kPairs) {
     const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
     if (!l || !r) continue;
@@ -111,21 +114,28 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
     const Vec3 init = 0.5 * (*l + pl.reflect(*r));
     q_pair.push_back({init[0], init[1], init[2]});
     pair_names.push_back(p);
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PairResidual, 6, 3, 1, 3>(new PairResidual{*l, *r}),
-                             new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_pair.back().data());
   }
-  for (const char* m : kMid) {
-    const Vec3* q = det.find(m);
-    if (!q) continue;
-    q_mid.push_back({(*q)[0], (*q)[1], (*q)[2]});
-    mid_names.push_back(m);
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<MidResidual, 3, 3, 1, 3>(new MidResidual{*q}),
-                             new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_mid.back().data());
-  }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 100;
-  so.logging_type = ceres::SILENT;
+  for (const char* m : kMid)
+    if (const Vec3* q = det.find(m)) {
+      q_mid.push_back({(*q)[0], (*q)[1], (*q)[2]});
+      mid_names.push_back(m);
+    }
+  // Residuals between the detected landmarks and the symmetric configuration.
+  auto add_configuration = [&](ceres::Problem& pb) {
+    pb.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
+    pb.AddParameterBlock(d, 1);
+    for (std::size_t i = 0; i < q_pair.size(); ++i) {
+      const Vec3 *l = det.find(pair_names[i] + "_L"), *r = det.find(pair_names[i] + "_R");
+      pb.AddResidualBlock(new ceres::AutoDiffCostFunction<PairResidual, 6, 3, 1, 3>(new PairResidual{*l, *r}),
+                          new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_pair[i].data());
+    }
+    for (std::size_t i = 0; i < q_mid.size(); ++i)
+      pb.AddResidualBlock(new ceres::AutoDiffCostFunction<MidResidual, 3, 3, 1, 3>(new MidResidual{*det.find(mid_names[i])}),
+                          new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_mid[i].data());
+  };
+  ceres::Problem problem;
+  add_configuration(problem);
+  const ceres::Solver::Options so = solver_options(100);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
 
@@ -155,12 +165,8 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
                                  new MirrorResidual{v, hit.point, fn[static_cast<std::size_t>(hit.face)]}),
                              new ceres::HuberLoss(opt.icp_huber_mm), n, d);
       }
-      ceres::Solver::Options io;
-      io.linear_solver_type = ceres::DENSE_QR;
-      io.max_num_iterations = 30;
-      io.logging_type = ceres::SILENT;
       ceres::Solver::Summary s;
-      ceres::Solve(io, &icp, &s);
+      ceres::Solve(solver_options(30), &icp, &s);
       rms = std::sqrt(2.0 * s.final_cost / std::max(1, s.num_residual_blocks));
       const Plane np = current_plane();
       const double moved = std::acos(std::min(1.0, std::abs(dot(np.normal, pl.normal)))) * 180 / 3.14159265358979 +
@@ -170,14 +176,7 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
     res.surface_rms_mm = rms;
     // Re-solve the symmetric configuration for the refined plane (plane fixed).
     ceres::Problem cfg;
-    for (std::size_t i = 0; i < q_pair.size(); ++i) {
-      const Vec3 *l = det.find(pair_names[i] + "_L"), *r = det.find(pair_names[i] + "_R");
-      cfg.AddResidualBlock(new ceres::AutoDiffCostFunction<PairResidual, 6, 3, 1, 3>(new PairResidual{*l, *r}),
-                           new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_pair[i].data());
-    }
-    for (std::size_t i = 0; i < q_mid.size(); ++i)
-      cfg.AddResidualBlock(new ceres::AutoDiffCostFunction<MidResidual, 3, 3, 1, 3>(new MidResidual{*det.find(mid_names[i])}),
-                           new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_mid[i].data());
+    add_configuration(cfg);
     cfg.SetParameterBlockConstant(n);
     cfg.SetParameterBlockConstant(d);
     ceres::Solve(so, &cfg, &summary);

@@ -13,36 +13,13 @@
 #include <limits>
 
 #include "core/error.h"
+#include "io/itk_geometry.h"
 
 namespace ms::segmentation {
 namespace {
 
 using MaskImage = itk::Image<unsigned char, 3>;
 using LabelImage = itk::Image<unsigned int, 3>;
-
-MaskImage::Pointer make_image(const Geometry& g) {
-  auto img = MaskImage::New();
-  MaskImage::RegionType region;
-  MaskImage::SizeType size;
-  MaskImage::SpacingType spacing;
-  MaskImage::PointType origin;
-  MaskImage::DirectionType dir;
-  for (int a = 0; a < 3; ++a) {
-    size[a] = g.size[a];
-    spacing[a] = g.spacing[a];
-    origin[a] = g.origin[a];
-  }
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) dir(r, c) = g.direction[3 * r + c];
-  region.SetSize(size);
-  img->SetRegions(region);
-  img->SetSpacing(spacing);
-  img->SetOrigin(origin);
-  img->SetDirection(dir);
-  img->Allocate();
-  img->FillBuffer(0);
-  return img;
-}
 
 struct Component {
   unsigned label = 0;
@@ -54,7 +31,7 @@ struct Component {
 
 Result segment_mandible(const Volume& ct, const Options& opt) {
   const Geometry& g = ct.geom;
-  auto bone = make_image(g);
+  auto bone = io::make_image<MaskImage>(g);
   {
     auto* b = bone->GetBufferPointer();
     for (std::size_t i = 0; i < ct.hu.size(); ++i) b[i] = ct.hu[i] >= opt.bone_threshold_hu;
@@ -113,7 +90,7 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   if (best == 0)
     throw Error(ExitCode::NoMandible, "no mandible found: no bone component is at least 40 mm wide left-right");
 
-  auto comp = make_image(g);
+  auto comp = io::make_image<MaskImage>(g);
   {
     auto* m = comp->GetBufferPointer();
     for (std::size_t i = 0; i < ct.hu.size(); ++i) m[i] = labels[i] == best;
