@@ -3,11 +3,9 @@
 
 #include <itkGDCMImageIO.h>
 #include <itkGDCMImageIOFactory.h>
-#include <itkGDCMSeriesFileNames.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
-#include <itkImageSeriesReader.h>
 #include <itkImageSeriesWriter.h>
 #include <itkMetaDataObject.h>
 #include <itkMetaImageIOFactory.h>
@@ -26,6 +24,7 @@
 
 #include "core/error.h"
 #include "core/sha256.h"
+#include "io/dicom.h"
 #include "io/itk_geometry.h"
 
 namespace fs = std::filesystem;
@@ -62,17 +61,7 @@ std::string lower(std::string s) {
   return s;
 }
 
-std::string trim(std::string s) {
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
-  while (!s.empty() && s.front() == ' ') s.erase(s.begin());
-  return s;
-}
 
-std::string dict_string(const itk::MetaDataDictionary& d, const std::string& tag) {
-  std::string v;
-  itk::ExposeMetaData<std::string>(d, tag, v);
-  return trim(v);
-}
 
 std::string volume_kind(const std::string& path) {
   const std::string l = lower(path);
@@ -114,59 +103,47 @@ void finish(LoadedScan& scan, double hu_offset) {
                                  "] does not look like CT in HU (air should be near -1000); check --hu-offset");
 }
 
-LoadedScan read_dicom_dir(const std::string& dir, const ReadOptions& opt) {
-  auto names = itk::GDCMSeriesFileNames::New();
-  names->SetRecursive(true);
-  names->SetUseSeriesDetails(false);
-  names->SetDirectory(dir);
-  const auto& uids = names->GetSeriesUIDs();
-  if (uids.empty()) throw Error(ExitCode::InputInvalid, dir + ": no DICOM image series found");
-
-  std::string chosen = opt.series_uid;
-  if (chosen.empty()) {
-    std::size_t best = 0;
-    for (const auto& uid : uids) {
-      const auto n = names->GetFileNames(uid).size();
-      if (n > best) {
-        best = n;
-        chosen = uid;
+LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
+  const dicom::ScanResult sc = dicom::scan(path);
+  if (sc.files_seen == 0) throw Error(ExitCode::InputInvalid, path + ": folder is empty");
+  if (sc.dicom_files == 0)
+    throw Error(ExitCode::InputInvalid, path + ": no DICOM files (" + std::to_string(sc.files_seen) + " file(s), e.g. " +
+                                            sc.first_non_dicom + " is not DICOM)");
+  if (sc.series.empty())
+    throw Error(ExitCode::InputInvalid, path + ": DICOM files but no images (" + std::to_string(sc.non_image_files) +
+                                            " non-image object(s))");
+  std::vector<dicom::Layout> layouts;
+  for (const auto& s : sc.series) layouts.push_back(dicom::analyse(s));
+  int chosen = -1;
+  std::string why;
+  if (!opt.series_uid.empty()) {
+    for (std::size_t i = 0; i < sc.series.size(); ++i)
+      if (sc.series[i].uid == opt.series_uid || sc.series[i].label == opt.series_uid) {
+        if (!layouts[i].usable) throw Error(ExitCode::InputInvalid, path + ": series " + sc.series[i].label + ": " + layouts[i].problem);
+        if (chosen < 0 || layouts[i].order.size() > layouts[chosen].order.size()) chosen = static_cast<int>(i);
       }
-    }
-  } else if (std::find(uids.begin(), uids.end(), chosen) == uids.end()) {
-    throw Error(ExitCode::InputInvalid, dir + ": series " + chosen + " not found");
+    if (chosen < 0) throw Error(ExitCode::InputInvalid, path + ": series " + opt.series_uid + " not found (see mandisym inspect)");
+    if (sc.series[chosen].modality != "CT")
+      throw Error(ExitCode::InputInvalid, path + ": series " + opt.series_uid + " is " + sc.series[chosen].modality + ", not CT");
+  } else {
+    chosen = dicom::choose(sc, layouts, &why);
+    if (chosen < 0) throw Error(ExitCode::InputInvalid, path + ": " + why);
   }
-  const auto files = names->GetFileNames(chosen);
-  if (files.size() < 4)
-    throw Error(ExitCode::InputInvalid,
-                dir + ": series has " + std::to_string(files.size()) + " slice(s), a head CT needs many");
-
-  auto gdcm_io = itk::GDCMImageIO::New();
-  auto reader = itk::ImageSeriesReader<FloatImage>::New();
-  reader->SetImageIO(gdcm_io);
-  reader->SetFileNames(files);
-  try {
-    reader->Update();
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(ExitCode::InputInvalid, dir + ": cannot read DICOM series: " + first_line(e.GetDescription()));
-  }
+  const dicom::Series& s = sc.series[chosen];
   LoadedScan scan;
-  scan.info.path = dir;
+  scan.info.path = path;
   scan.info.kind = "dicom";
-  scan.info.file_count = files.size();
-  const auto& d = gdcm_io->GetMetaDataDictionary();
-  scan.info.series_uid = dict_string(d, "0020|000e");
-  scan.info.modality = dict_string(d, "0008|0060");
-  scan.info.study_date = dict_string(d, "0008|0020");
-  scan.info.manufacturer = dict_string(d, "0008|0070");
-  scan.info.model = dict_string(d, "0008|1090");
-  scan.info.kernel = dict_string(d, "0018|1210");
-  scan.info.series_description = dict_string(d, "0008|103e");
-  if (!scan.info.modality.empty() && scan.info.modality != "CT")
-    throw Error(ExitCode::InputInvalid, dir + ": series modality is " + scan.info.modality + ", expected CT");
-
-  FloatImage::Pointer img = reader->GetOutput();
-  scan.volume.geom = geometry_of(img.GetPointer());
-  scan.volume.hu.assign(img->GetBufferPointer(), img->GetBufferPointer() + scan.volume.geom.voxel_count());
+  scan.info.file_count = s.files.size();
+  scan.info.series_uid = s.uid;
+  scan.info.modality = s.modality;
+  scan.info.study_date = s.study_date;
+  scan.info.manufacturer = s.manufacturer;
+  scan.info.model = s.model;
+  scan.info.kernel = s.kernel;
+  scan.info.series_description = s.description;
+  scan.info.warnings = layouts[chosen].warnings;
+  if (sc.series.size() > 1) scan.info.warnings.push_back(std::to_string(sc.series.size()) + " image series found; used " + s.label);
+  scan.volume = dicom::assemble(s, layouts[chosen], scan.info.warnings);
   return scan;
 }
 
@@ -195,15 +172,11 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file or directory");
   LoadedScan scan;
-  if (fs::is_directory(path, ec)) {
-    scan = read_dicom_dir(path, options);
-  } else {
-    const std::string kind = volume_kind(path);
-    if (kind.empty())
-      throw Error(ExitCode::InputInvalid,
-                  path + ": not a DICOM folder nor a .nii/.nii.gz/.nrrd/.nhdr/.mha/.mhd volume");
+  const std::string kind = fs::is_directory(path, ec) ? "" : volume_kind(path);
+  if (kind.empty())
+    scan = read_dicom(path, options);  // a folder, or a single (e.g. enhanced multi-frame) DICOM file
+  else
     scan = read_volume_file(path, kind);
-  }
   finish(scan, options.hu_offset);
   return scan;
 }

@@ -1,0 +1,565 @@
+// GDCM-facing translation unit: no system Eigen here (ENGINEERING.md).
+#include "io/dicom.h"
+
+#include <gdcmAttribute.h>
+#include <gdcmDataSet.h>
+#include <gdcmImage.h>
+#include <gdcmImageReader.h>
+#include <gdcmReader.h>
+#include <gdcmSequenceOfItems.h>
+#include <gdcmTrace.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace fs = std::filesystem;
+
+namespace ms::io::dicom {
+namespace {
+
+constexpr std::size_t kMinSlices = 8;
+constexpr double kAir = -1024.0;
+
+void quiet_gdcm() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    gdcm::Trace::SetWarning(false);
+    gdcm::Trace::SetDebug(false);
+    gdcm::Trace::SetError(false);
+  });
+}
+
+std::string trim(std::string s) {
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  std::size_t b = 0;
+  while (b < s.size() && s[b] == ' ') ++b;
+  return s.substr(b);
+}
+
+std::string str(const gdcm::DataSet& ds, std::uint16_t g, std::uint16_t e) {
+  const gdcm::Tag t(g, e);
+  if (!ds.FindDataElement(t)) return "";
+  const gdcm::DataElement& de = ds.GetDataElement(t);
+  const gdcm::ByteValue* bv = de.GetByteValue();
+  if (!bv || de.IsEmpty()) return "";
+  return trim(std::string(bv->GetPointer(), bv->GetLength()));
+}
+
+std::vector<double> numbers(const std::string& s) {
+  std::vector<double> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, '\\')) {
+    char* end = nullptr;
+    const std::string t = trim(item);
+    const double v = std::strtod(t.c_str(), &end);
+    if (t.empty() || end == t.c_str() || !std::isfinite(v)) return {};
+    out.push_back(v);
+  }
+  return out;
+}
+
+// Unsigned 16-bit value (US) in the dataset's byte order (little endian here).
+bool u16(const gdcm::DataSet& ds, std::uint16_t g, std::uint16_t e, unsigned& out) {
+  const gdcm::Tag t(g, e);
+  if (!ds.FindDataElement(t)) return false;
+  const gdcm::ByteValue* bv = ds.GetDataElement(t).GetByteValue();
+  if (!bv || bv->GetLength() < 2) return false;
+  std::uint16_t v;
+  std::memcpy(&v, bv->GetPointer(), 2);
+  out = v;
+  return true;
+}
+
+const gdcm::DataSet* item(const gdcm::DataSet& ds, std::uint16_t g, std::uint16_t e, std::size_t index = 1) {
+  const gdcm::Tag t(g, e);
+  if (!ds.FindDataElement(t)) return nullptr;
+  gdcm::SmartPointer<gdcm::SequenceOfItems> sq = ds.GetDataElement(t).GetValueAsSQ();
+  if (!sq || sq->GetNumberOfItems() < index) return nullptr;
+  return &sq->GetItem(index).GetNestedDataSet();
+}
+
+void read_geometry(const gdcm::DataSet& ds, Frame& f) {
+  const auto ipp = numbers(str(ds, 0x0020, 0x0032));
+  if (ipp.size() == 3) {
+    f.ipp = {ipp[0], ipp[1], ipp[2]};
+    f.has_ipp = true;
+  }
+  const auto iop = numbers(str(ds, 0x0020, 0x0037));
+  if (iop.size() == 6) {
+    f.row_dir = {iop[0], iop[1], iop[2]};
+    f.col_dir = {iop[3], iop[4], iop[5]};
+    f.has_iop = true;
+  }
+  const auto ps = numbers(str(ds, 0x0028, 0x0030));
+  if (ps.size() == 2) {
+    f.spacing_j = ps[0];  // between rows
+    f.spacing_i = ps[1];  // between columns
+  }
+  const auto icpt = numbers(str(ds, 0x0028, 0x1052));
+  const auto slope = numbers(str(ds, 0x0028, 0x1053));
+  if (icpt.size() == 1) f.intercept = icpt[0];
+  if (slope.size() == 1 && slope[0] != 0) f.slope = slope[0];
+}
+
+// Functional group macros of an enhanced multi-frame image (shared, then per frame).
+void read_functional_groups(const gdcm::DataSet& fg, Frame& f) {
+  if (const auto* pos = item(fg, 0x0020, 0x9113)) read_geometry(*pos, f);
+  if (const auto* ori = item(fg, 0x0020, 0x9116)) read_geometry(*ori, f);
+  if (const auto* meas = item(fg, 0x0028, 0x9110)) read_geometry(*meas, f);
+  if (const auto* pvt = item(fg, 0x0028, 0x9145)) read_geometry(*pvt, f);
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+std::string fmt(double v, int prec = 2) {
+  std::ostringstream o;
+  o.setf(std::ios::fixed);
+  o.precision(prec);
+  o << v;
+  return o.str();
+}
+
+std::string iop_key(const Frame& f) {
+  std::ostringstream o;
+  o << std::lround(f.row_dir[0] * 1000) << ',' << std::lround(f.row_dir[1] * 1000) << ',' << std::lround(f.row_dir[2] * 1000)
+    << ',' << std::lround(f.col_dir[0] * 1000) << ',' << std::lround(f.col_dir[1] * 1000) << ','
+    << std::lround(f.col_dir[2] * 1000) << '/' << f.rows << 'x' << f.cols;
+  return f.has_iop ? o.str() : "no-iop";
+}
+
+}  // namespace
+
+ScanResult scan(const std::string& path) {
+  quiet_gdcm();
+  ScanResult res;
+  res.path = path;
+  std::vector<std::string> files;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    for (auto it = fs::recursive_directory_iterator(path, fs::directory_options::skip_permission_denied, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+      if (it->is_regular_file(ec)) files.push_back(it->path().string());
+  } else {
+    files.push_back(path);
+  }
+  std::sort(files.begin(), files.end());
+  res.files_seen = files.size();
+
+  struct Key {
+    std::string uid, stack;
+    bool operator<(const Key& o) const { return std::tie(uid, stack) < std::tie(o.uid, o.stack); }
+  };
+  std::map<Key, Series> groups;
+  for (const auto& file : files) {
+    gdcm::Reader r;
+    r.SetFileName(file.c_str());
+    const auto size = fs::file_size(file, ec);
+    // Headers only: stop in front of the pixel data (the skip set keeps GDCM
+    // from loading it); the bytes left tell whether there is any.
+    static const std::set<gdcm::Tag> kSkipPixels{gdcm::Tag(0x7fe0, 0x0010)};
+    if (ec || size < 16 || !r.ReadUpToTag(gdcm::Tag(0x7fe0, 0x0010), kSkipPixels)) {
+      if (res.first_non_dicom.empty()) res.first_non_dicom = file;
+      continue;
+    }
+    const gdcm::DataSet& ds = r.GetFile().GetDataSet();
+    const std::string sop_class = str(ds, 0x0008, 0x0016);
+    const std::string modality = str(ds, 0x0008, 0x0060);
+    if (ds.IsEmpty() || (sop_class.empty() && modality.empty() && !ds.FindDataElement(gdcm::Tag(0x0028, 0x0010)))) {
+      if (res.first_non_dicom.empty()) res.first_non_dicom = file;
+      continue;
+    }
+    ++res.dicom_files;
+    unsigned rows = 0, cols = 0;
+    if (!u16(ds, 0x0028, 0x0010, rows) || !u16(ds, 0x0028, 0x0011, cols) || rows == 0 || cols == 0) {
+      ++res.non_image_files;
+      continue;
+    }
+    const bool has_pixels = r.GetStreamCurrentPosition() + 8 <= size;
+    Frame base;
+    base.file = file;
+    base.rows = rows;
+    base.cols = cols;
+    base.instance = static_cast<int>(std::lround(numbers(str(ds, 0x0020, 0x0013)).empty() ? 0 : numbers(str(ds, 0x0020, 0x0013))[0]));
+    read_geometry(ds, base);
+    const auto nf = numbers(str(ds, 0x0028, 0x0008));
+    const unsigned n_frames = nf.size() == 1 && nf[0] >= 1 ? static_cast<unsigned>(nf[0]) : 1;
+    std::vector<Frame> frames;
+    if (n_frames > 1) {
+      // Enhanced multi-frame: shared groups, then per-frame groups.
+      Frame shared = base;
+      if (const auto* sfg = item(ds, 0x5200, 0x9229)) read_functional_groups(*sfg, shared);
+      for (unsigned k = 0; k < n_frames; ++k) {
+        Frame f = shared;
+        f.frame = k;
+        if (const auto* pfg = item(ds, 0x5200, 0x9230, k + 1)) read_functional_groups(*pfg, f);
+        else f.has_ipp = false;  // no per-frame position: cannot place the frame
+        frames.push_back(f);
+      }
+    } else {
+      frames.push_back(base);
+    }
+    const std::string uid = str(ds, 0x0020, 0x000e);
+    Series& s = groups[Key{uid.empty() ? "(no SeriesInstanceUID)" : uid, iop_key(frames.front())}];
+    if (s.frames.empty()) {
+      s.uid = uid;
+      s.study_uid = str(ds, 0x0020, 0x000d);
+      s.modality = modality;
+      s.description = str(ds, 0x0008, 0x103e);
+      s.image_type = str(ds, 0x0008, 0x0008);
+      s.study_date = str(ds, 0x0008, 0x0020);
+      s.manufacturer = str(ds, 0x0008, 0x0070);
+      s.model = str(ds, 0x0008, 0x1090);
+      s.kernel = str(ds, 0x0018, 0x1210);
+      s.photometric = str(ds, 0x0028, 0x0004);
+      s.sop_class = sop_class;
+      s.transfer_syntax = str(r.GetFile().GetHeader(), 0x0002, 0x0010);
+      u16(ds, 0x0028, 0x0100, s.bits_allocated);
+      if (!u16(ds, 0x0028, 0x0101, s.bits_stored)) s.bits_stored = s.bits_allocated;
+      u16(ds, 0x0028, 0x0103, s.pixel_representation);
+      u16(ds, 0x0028, 0x0002, s.samples_per_pixel);
+      unsigned pad = 0, lim = 0;
+      if (u16(ds, 0x0028, 0x0120, pad)) {
+        s.has_padding = true;
+        s.padding = s.pixel_representation ? static_cast<double>(static_cast<std::int16_t>(pad)) : pad;
+      }
+      if (u16(ds, 0x0028, 0x0121, lim)) {
+        s.has_padding_limit = true;
+        s.padding_limit = s.pixel_representation ? static_cast<double>(static_cast<std::int16_t>(lim)) : lim;
+      }
+    }
+    if (!has_pixels && !s.missing_pixel_data) {
+      s.missing_pixel_data = true;
+      s.missing_pixel_data_file = file;
+    }
+    s.files.insert(file);
+    for (auto& f : frames) s.frames.push_back(std::move(f));
+  }
+  // Label sub-stacks of one UID as uid#1, uid#2, ...
+  std::map<std::string, int> per_uid;
+  for (const auto& [k, s] : groups) ++per_uid[k.uid];
+  std::map<std::string, int> seen;
+  for (auto& [k, s] : groups) {
+    s.label = per_uid[k.uid] > 1 ? k.uid + "#" + std::to_string(++seen[k.uid]) : k.uid;
+    res.series.push_back(std::move(s));
+  }
+  return res;
+}
+
+Layout analyse(const Series& s) {
+  Layout L;
+  auto refuse = [&](const std::string& why) {
+    L.usable = false;
+    L.problem = why;
+    return L;
+  };
+  if (s.missing_pixel_data) return refuse(s.missing_pixel_data_file + ": DICOM image without pixel data");
+  if (s.samples_per_pixel != 1) return refuse("colour images (" + std::to_string(s.samples_per_pixel) + " samples per pixel) are not CT");
+  for (const auto& f : s.frames) {
+    if (!f.has_ipp || !f.has_iop)
+      return refuse(f.file + ": ImagePositionPatient or ImageOrientationPatient missing; the slice cannot be placed");
+    if (!(f.spacing_i > 0) || !(f.spacing_j > 0)) return refuse(f.file + ": PixelSpacing missing or not positive");
+  }
+  if (s.frames.size() < kMinSlices)
+    return refuse(s.frames.size() == 1 ? "a single slice, not a volume"
+                                       : std::to_string(s.frames.size()) + " slices, too few for a head CT volume");
+  const Frame& f0 = s.frames.front();
+  for (const auto& f : s.frames)
+    if (std::abs(f.spacing_i - f0.spacing_i) > 1e-3 * f0.spacing_i || std::abs(f.spacing_j - f0.spacing_j) > 1e-3 * f0.spacing_j)
+      return refuse("pixel spacing differs between slices (" + f0.file + ": " + fmt(f0.spacing_j, 4) + "\\" +
+                    fmt(f0.spacing_i, 4) + ", " + f.file + ": " + fmt(f.spacing_j, 4) + "\\" + fmt(f.spacing_i, 4) + ")");
+  if (std::abs(dot(f0.row_dir, f0.col_dir)) > 1e-3 || std::abs(norm(f0.row_dir) - 1) > 1e-3 || std::abs(norm(f0.col_dir) - 1) > 1e-3)
+    return refuse(f0.file + ": ImageOrientationPatient is not orthonormal");
+  L.normal = normalized(cross(f0.row_dir, f0.col_dir));
+  // Sort along the normal.
+  std::vector<std::size_t> idx(s.frames.size());
+  for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+  std::stable_sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) {
+    return dot(L.normal, s.frames[a].ipp) < dot(L.normal, s.frames[b].ipp);
+  });
+  // Duplicates: same position (3D) as the previous kept frame.
+  for (std::size_t k = 0; k < idx.size(); ++k) {
+    if (!L.order.empty()) {
+      const Frame& prev = s.frames[L.order.back()];
+      const Frame& cur = s.frames[idx[k]];
+      if (distance(prev.ipp, cur.ipp) < 0.01) {
+        L.duplicates.back().push_back(idx[k]);
+        continue;
+      }
+      if (std::abs(dot(L.normal, cur.ipp - prev.ipp)) < 0.01)
+        return refuse("two slices at the same level with different in-plane positions (" + prev.file + ", " + cur.file + ")");
+    }
+    L.order.push_back(idx[k]);
+    L.duplicates.emplace_back();
+  }
+  if (L.order.size() < kMinSlices)
+    return refuse(std::to_string(L.order.size()) + " distinct slice positions, too few for a head CT volume");
+  std::vector<double> t;
+  for (auto i : L.order) t.push_back(dot(L.normal, s.frames[i].ipp));
+  std::vector<double> d;
+  for (std::size_t k = 1; k < t.size(); ++k) d.push_back(t[k] - t[k - 1]);
+  std::vector<double> sorted = d;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  L.nominal_spacing = sorted[sorted.size() / 2];
+  L.extent_mm = t.back() - t.front();
+  L.max_gap = *std::max_element(d.begin(), d.end());
+  const double min_gap = *std::min_element(d.begin(), d.end());
+  // Gantry tilt: the stack direction is not the slice normal.
+  const Vec3 stack = s.frames[L.order.back()].ipp - s.frames[L.order.front()].ipp;
+  L.tilt_deg = std::acos(std::min(1.0, std::abs(dot(normalized(stack), L.normal)))) * 180.0 / 3.14159265358979323846;
+  if (L.tilt_deg > 0.1) {
+    if (L.tilt_deg > 45) return refuse("slice positions do not advance along the slice normal (tilt " + fmt(L.tilt_deg, 1) + "°)");
+    L.resample = true;
+    L.warnings.push_back("gantry tilt of " + fmt(L.tilt_deg, 1) + "° corrected by resampling onto an orthogonal grid");
+  }
+  const double tol = std::max(0.02, 0.05 * L.nominal_spacing);
+  if (L.max_gap > L.nominal_spacing + tol || min_gap < L.nominal_spacing - tol) {
+    if (L.max_gap > 3.0 * L.nominal_spacing + tol) {
+      std::size_t k = 0;
+      while (d[k] != L.max_gap) ++k;
+      return refuse("slices missing: a gap of " + fmt(L.max_gap) + " mm (nominal spacing " + fmt(L.nominal_spacing) +
+                    " mm) between " + s.frames[L.order[k]].file + " and " + s.frames[L.order[k + 1]].file);
+    }
+    L.resample = true;
+    const long missing = std::lround(L.extent_mm / L.nominal_spacing) + 1 - static_cast<long>(L.order.size());
+    L.warnings.push_back("non-uniform slice spacing (" + fmt(min_gap) + " to " + fmt(L.max_gap) + " mm, nominal " +
+                         fmt(L.nominal_spacing) + " mm" + (missing > 0 ? ", about " + std::to_string(missing) + " missing slice(s)" : "") +
+                         "): resampled by linear interpolation");
+  }
+  std::size_t dups = 0;
+  for (const auto& g : L.duplicates) dups += g.size();
+  if (dups) L.warnings.push_back(std::to_string(dups) + " slice(s) at an already used position (checked for identical content when read)");
+  const Vec3& n = L.normal;
+  L.orientation = std::abs(n[2]) > 0.9 ? "axial" : std::abs(n[1]) > 0.9 ? "coronal" : std::abs(n[0]) > 0.9 ? "sagittal" : "oblique";
+  L.usable = true;
+  return L;
+}
+
+int choose(const ScanResult& scan, const std::vector<Layout>& layouts, std::string* why) {
+  int best = -1;
+  double best_extent = 0;
+  for (std::size_t i = 0; i < scan.series.size(); ++i) {
+    const auto& s = scan.series[i];
+    if (lower(s.modality) != "ct" || !layouts[i].usable || lower(s.image_type).find("localizer") != std::string::npos) continue;
+    best_extent = std::max(best_extent, layouts[i].extent_mm);
+  }
+  for (std::size_t i = 0; i < scan.series.size(); ++i) {
+    const auto& s = scan.series[i];
+    const Layout& L = layouts[i];
+    if (lower(s.modality) != "ct" || !L.usable || lower(s.image_type).find("localizer") != std::string::npos) continue;
+    if (L.extent_mm < 0.8 * best_extent) continue;  // must cover (nearly) as much as the best
+    if (best < 0) {
+      best = static_cast<int>(i);
+      continue;
+    }
+    const auto& b = scan.series[best];
+    const double vox = s.frames[0].spacing_i * s.frames[0].spacing_j * L.nominal_spacing;
+    const double bvox = b.frames[0].spacing_i * b.frames[0].spacing_j * layouts[best].nominal_spacing;
+    if (vox < bvox * 0.999 || (std::abs(vox - bvox) <= bvox * 0.001 && L.order.size() > layouts[best].order.size()))
+      best = static_cast<int>(i);
+  }
+  if (!why) return best;
+  if (best >= 0) {
+    *why = "CT series " + scan.series[best].label + " (" + std::to_string(layouts[best].order.size()) +
+           " slices): the finest series covering at least 80 % of the largest extent";
+    return best;
+  }
+  // Explain the refusal.
+  std::map<std::string, std::size_t> modalities;
+  int largest_ct = -1;
+  for (std::size_t i = 0; i < scan.series.size(); ++i) {
+    const auto& s = scan.series[i];
+    modalities[s.modality.empty() ? "unknown modality" : s.modality] += s.frames.size();
+    if (lower(s.modality) == "ct" && (largest_ct < 0 || s.frames.size() > scan.series[largest_ct].frames.size()))
+      largest_ct = static_cast<int>(i);
+  }
+  if (largest_ct >= 0) {
+    const auto& L = layouts[largest_ct];
+    *why = L.usable ? "the only CT series is a localizer" : L.problem;
+  } else {
+    std::string found;
+    for (const auto& [m, n] : modalities) found += (found.empty() ? "" : ", ") + m + " (" + std::to_string(n) + " images)";
+    *why = "no CT series; found " + found;
+  }
+  return -1;
+}
+
+namespace {
+
+// Stored values of every frame of a file, as doubles, frame-major.
+std::vector<double> decode_file(const Series& s, const std::string& file, unsigned rows, unsigned cols, unsigned n_frames) {
+  gdcm::ImageReader ir;
+  ir.SetFileName(file.c_str());
+  if (!ir.Read()) throw Error(ExitCode::InputInvalid, file + ": cannot read the image (truncated or corrupt DICOM)");
+  const gdcm::Image& img = ir.GetImage();
+  const std::size_t n = static_cast<std::size_t>(rows) * cols * n_frames;
+  const unsigned bytes = s.bits_allocated / 8;
+  if (bytes != 1 && bytes != 2 && bytes != 4)
+    throw Error(ExitCode::InputInvalid, file + ": unsupported BitsAllocated " + std::to_string(s.bits_allocated));
+  const unsigned long len = img.GetBufferLength();
+  if (len < n * bytes)
+    throw Error(ExitCode::InputInvalid, file + ": pixel data holds " + std::to_string(len) + " bytes, Rows x Columns x frames needs " +
+                                            std::to_string(n * bytes));
+  std::vector<char> buf(len);
+  if (!img.GetBuffer(buf.data()))
+    throw Error(ExitCode::InputInvalid, file + ": cannot decode the pixel data (" +
+                                            std::string(img.GetTransferSyntax().GetString() ? img.GetTransferSyntax().GetString() : "?") + ")");
+  std::vector<double> out(n);
+  const bool is_signed = s.pixel_representation == 1;
+  const unsigned stored = std::min(s.bits_stored, s.bits_allocated);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint32_t raw = 0;
+    std::memcpy(&raw, buf.data() + i * bytes, bytes);
+    if (stored < 32) raw &= (1u << stored) - 1u;  // drop bits above BitsStored (overlays)
+    if (is_signed && stored < 32 && (raw >> (stored - 1)) & 1u) {
+      out[i] = static_cast<double>(static_cast<std::int64_t>(raw) - (static_cast<std::int64_t>(1) << stored));
+    } else {
+      out[i] = static_cast<double>(raw);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings) {
+  quiet_gdcm();
+  const Frame& f0 = s.frames[L.order.front()];
+  const unsigned rows = f0.rows, cols = f0.cols;
+  const std::size_t plane = static_cast<std::size_t>(rows) * cols;
+  // Which frames are needed, grouped by file.
+  std::map<std::string, std::vector<std::size_t>> by_file;
+  std::vector<std::size_t> needed = L.order;
+  for (const auto& g : L.duplicates) needed.insert(needed.end(), g.begin(), g.end());
+  for (auto i : needed) by_file[s.frames[i].file].push_back(i);
+  std::vector<std::string> file_list;
+  for (const auto& [f, v] : by_file) file_list.push_back(f);
+  std::vector<std::vector<float>> hu(s.frames.size());
+  std::size_t padded = 0, clamped = 0;
+  std::string error;
+  std::mutex mu;
+#pragma omp parallel for schedule(dynamic, 4) reduction(+ : padded, clamped)
+  for (long fi = 0; fi < static_cast<long>(file_list.size()); ++fi) {
+    const std::string& file = file_list[static_cast<std::size_t>(fi)];
+    const auto& idxs = by_file.at(file);
+    std::vector<double> stored;
+    try {
+      unsigned in_file = 0;  // frames of this file (multi-frame files decode as one buffer)
+      for (const auto& fr : s.frames)
+        if (fr.file == file) ++in_file;
+      stored = decode_file(s, file, rows, cols, in_file);
+    } catch (const Error& e) {
+      std::lock_guard<std::mutex> lock(mu);
+      if (error.empty()) error = e.what();
+      continue;
+    }
+    for (auto i : idxs) {
+      const Frame& fr = s.frames[i];
+      std::vector<float> out(plane);
+      const double* src = stored.data() + static_cast<std::size_t>(fr.frame) * plane;
+      for (std::size_t p = 0; p < plane; ++p) {
+        const double v = src[p];
+        bool pad = false;
+        if (s.has_padding) {
+          if (s.has_padding_limit)
+            pad = v >= std::min(s.padding, s.padding_limit) && v <= std::max(s.padding, s.padding_limit);
+          else
+            pad = v == s.padding;
+        }
+        double h = pad ? kAir : v * fr.slope + fr.intercept;
+        if (pad) ++padded;
+        if (h < kAir) {
+          h = kAir;
+          ++clamped;
+        }
+        out[p] = static_cast<float>(h);
+      }
+      hu[i] = std::move(out);
+    }
+  }
+  if (!error.empty()) throw Error(ExitCode::InputInvalid, error);
+  // Duplicates must be identical to the slice kept at their position.
+  std::size_t dropped = 0;
+  for (std::size_t k = 0; k < L.order.size(); ++k)
+    for (auto dup : L.duplicates[k]) {
+      if (hu[dup] != hu[L.order[k]])
+        throw Error(ExitCode::InputInvalid, "two different images at the same position: " + s.frames[L.order[k]].file + " and " +
+                                                s.frames[dup].file + " (interleaved acquisitions?)");
+      ++dropped;
+    }
+  if (dropped) warnings.push_back(std::to_string(dropped) + " exact duplicate slice(s) ignored");
+  if (padded) warnings.push_back(std::to_string(padded) + " padding voxels (PixelPaddingValue) set to air");
+  (void)clamped;  // values below -1024 HU outside the reconstruction circle are routine
+  if (lower(s.photometric) == "monochrome1")
+    warnings.push_back("MONOCHROME1 CT: the inverted display convention does not change HU and is ignored");
+
+  Volume v;
+  Geometry& g = v.geom;
+  const Vec3 r = f0.row_dir, c = f0.col_dir, n = L.normal;
+  g.spacing = {f0.spacing_i, f0.spacing_j, L.nominal_spacing};
+  g.direction = {r[0], c[0], n[0], r[1], c[1], n[1], r[2], c[2], n[2]};
+  if (!L.resample) {
+    g.size = {cols, rows, L.order.size()};
+    g.origin = f0.ipp;
+    v.hu.resize(g.voxel_count());
+    for (std::size_t k = 0; k < L.order.size(); ++k)
+      std::copy(hu[L.order[k]].begin(), hu[L.order[k]].end(), v.hu.begin() + k * plane);
+    return v;
+  }
+  // Resample onto the orthogonal grid (r, c, n): covers every frame's in-plane
+  // footprint; linear between the bracketing frames, bilinear within each.
+  double lo_r = 1e30, hi_r = -1e30, lo_c = 1e30, hi_c = -1e30;
+  std::vector<double> t;
+  for (auto i : L.order) {
+    const Frame& fr = s.frames[i];
+    lo_r = std::min(lo_r, dot(fr.ipp, r));
+    hi_r = std::max(hi_r, dot(fr.ipp, r) + (cols - 1) * fr.spacing_i);
+    lo_c = std::min(lo_c, dot(fr.ipp, c));
+    hi_c = std::max(hi_c, dot(fr.ipp, c) + (rows - 1) * fr.spacing_j);
+    t.push_back(dot(fr.ipp, n));
+  }
+  g.size = {static_cast<std::size_t>(std::floor((hi_r - lo_r) / g.spacing[0] + 1e-6)) + 1,
+            static_cast<std::size_t>(std::floor((hi_c - lo_c) / g.spacing[1] + 1e-6)) + 1,
+            static_cast<std::size_t>(std::floor((t.back() - t.front()) / g.spacing[2] + 1e-6)) + 1};
+  g.origin = lo_r * r + lo_c * c + t.front() * n;
+  v.hu.assign(g.voxel_count(), static_cast<float>(kAir));
+  auto sample = [&](std::size_t frame, const Vec3& p) -> double {
+    const Frame& fr = s.frames[frame];
+    const Vec3 q = p - fr.ipp;
+    const double x = dot(q, r) / fr.spacing_i, y = dot(q, c) / fr.spacing_j;
+    if (x < 0 || y < 0 || x > cols - 1 || y > rows - 1) return kAir;
+    const std::size_t x0 = std::min<std::size_t>(static_cast<std::size_t>(x), cols - 2), y0 = std::min<std::size_t>(static_cast<std::size_t>(y), rows - 2);
+    const double ax = x - x0, ay = y - y0;
+    const auto& img = hu[frame];
+    const double a = img[y0 * cols + x0], b = img[y0 * cols + x0 + 1], cc = img[(y0 + 1) * cols + x0], d = img[(y0 + 1) * cols + x0 + 1];
+    return (1 - ay) * ((1 - ax) * a + ax * b) + ay * ((1 - ax) * cc + ax * d);
+  };
+  const long nz = static_cast<long>(g.size[2]);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k) {
+    const double tk = t.front() + k * g.spacing[2];
+    std::size_t hi = static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), tk + 1e-6) - t.begin());
+    hi = std::min(std::max<std::size_t>(hi, 1), t.size() - 1);
+    const std::size_t lo = hi - 1;
+    const double w = std::clamp((tk - t[lo]) / (t[hi] - t[lo]), 0.0, 1.0);
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        const Vec3 p = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+        const double a = sample(L.order[lo], p), b = sample(L.order[hi], p);
+        v.hu[g.linear(i, j, static_cast<std::size_t>(k))] = static_cast<float>((1 - w) * a + w * b);
+      }
+  }
+  return v;
+}
+
+}  // namespace ms::io::dicom
