@@ -37,7 +37,8 @@ const cli::CommandSpec& run_spec() {
       {{"INPUT", "DICOM folder or volume file"}},
       {{"output", "OUTDIR", "output folder (created; existing outputs are replaced)", ""},
        {"hu-offset", "HU", "added to every voxel after the file's own rescale (e.g. -1024 for HU+1024 data)", "0"},
-       {"series", "UID", "SeriesInstanceUID to use when the folder holds several series", "largest CT series"},
+       {"series", "UID", "series to use when the folder holds several (see mandisym inspect)", "finest CT series covering the scan"},
+       {"orientation", "CODE", "volume files: where the i, j, k axes point, e.g. LPS or LAI (for files without orientation)", "from the file"},
        {"bone-threshold", "HU", "bone threshold for segmentation", "250"},
        {"target-faces", "N", "decimate the surface above this many triangles", "60000"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
@@ -92,6 +93,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   io::ReadOptions ro;
   ro.hu_offset = args.number("hu-offset", 0.0);
   ro.series_uid = args.get("series");
+  ro.orientation = args.get("orientation");
   io::LoadedScan scan = io::read_scan(input, ro);
   S.scan = scan.info;
   S.grid = scan.volume.geom;

@@ -20,7 +20,9 @@
 #include <filesystem>
 #include <iomanip>
 #include <mutex>
+#include <fstream>
 #include <sstream>
+#include <unistd.h>
 
 #include "core/error.h"
 #include "core/sha256.h"
@@ -54,6 +56,12 @@ std::string first_line(const std::string& s) {
   // ITK messages start with "file:line:\n" noise; keep the description part.
   const auto pos = t.rfind(": ");
   return pos == std::string::npos ? t : t.substr(pos + 2);
+}
+
+std::string trim(std::string s) {
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  while (!s.empty() && s.front() == ' ') s.erase(s.begin());
+  return s;
 }
 
 std::string lower(std::string s) {
@@ -147,22 +155,97 @@ LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
   return scan;
 }
 
+// NRRD headers that combine "space:" with per-axis "spacings:" (legal in
+// older NRRD writers, e.g. VTK's headsq) are rejected by ITK's reader. When the
+// space is not anatomical (3D-left-handed / 3D-right-handed) it carries no
+// orientation, so drop it into a temporary copy of the header, with the data
+// file paths made absolute, and read that. Returns "" when not applicable.
+std::string patched_nrrd_header(const std::string& path, std::string& note) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "";
+  std::string line, out;
+  bool changed = false, in_header = true;
+  const fs::path dir = fs::absolute(fs::path(path)).parent_path();
+  while (in_header && std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) break;  // end of an attached header: this only patches detached headers
+    const std::string l = lower(line);
+    if (l.rfind("space:", 0) == 0 && (l.find("3d-left-handed") != std::string::npos || l.find("3d-right-handed") != std::string::npos)) {
+      note = "NRRD space '" + trim(line.substr(6)) + "' is not anatomical: axes taken as L, P, S (use --orientation if wrong)";
+      changed = true;
+      continue;
+    }
+    if (l.rfind("data file:", 0) == 0 || l.rfind("datafile:", 0) == 0) {
+      std::string rest = trim(line.substr(line.find(':') + 1));
+      if (!rest.empty() && rest[0] != '/' && lower(rest).rfind("list", 0) != 0) rest = (dir / rest).string();
+      line = "data file: " + rest;
+    }
+    out += line + "\n";
+  }
+  if (!changed || lower(path).size() < 5 || lower(path).substr(lower(path).size() - 5) != ".nhdr") return "";
+  const fs::path tmp = fs::temp_directory_path() / ("mandisym-" + std::to_string(::getpid()) + "-" + fs::path(path).filename().string());
+  std::ofstream o(tmp, std::ios::binary);
+  o << out;
+  return o ? tmp.string() : "";
+}
+
 LoadedScan read_volume_file(const std::string& path, const std::string& kind) {
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
+  std::string note;
   try {
     reader->Update();
   } catch (const itk::ExceptionObject& e) {
-    throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + first_line(e.GetDescription()));
+    const std::string patched = kind == "nrrd" ? patched_nrrd_header(path, note) : "";
+    if (patched.empty())
+      throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + first_line(e.GetDescription()));
+    reader = itk::ImageFileReader<FloatImage>::New();
+    reader->SetFileName(patched);
+    try {
+      reader->Update();
+    } catch (const itk::ExceptionObject& e2) {
+      std::error_code ec;
+      fs::remove(patched, ec);
+      throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + first_line(e2.GetDescription()));
+    }
+    std::error_code ec;
+    fs::remove(patched, ec);
   }
   LoadedScan scan;
   scan.info.path = path;
   scan.info.kind = kind;
   scan.info.file_count = 1;
+  if (!note.empty()) scan.info.warnings.push_back(note);
   FloatImage::Pointer img = reader->GetOutput();
   scan.volume.geom = geometry_of(img.GetPointer());
   scan.volume.hu.assign(img->GetBufferPointer(), img->GetBufferPointer() + scan.volume.geom.voxel_count());
   return scan;
+}
+
+// Direction matrix from a 3-letter code naming where the i, j, k axes point
+// (L/R, P/A, S/I), e.g. "LPS" (identity) or "LAI".
+std::array<double, 9> direction_from_code(const std::string& code, const std::string& path) {
+  if (code.size() != 3) throw Error(ExitCode::Usage, "--orientation: expected 3 letters from L/R, P/A, S/I, got '" + code + "'");
+  std::array<double, 9> d{};
+  bool used[3] = {false, false, false};
+  for (int c = 0; c < 3; ++c) {
+    int axis = -1;
+    double sign = 1;
+    switch (std::toupper(static_cast<unsigned char>(code[c]))) {
+      case 'L': axis = 0; break;
+      case 'R': axis = 0; sign = -1; break;
+      case 'P': axis = 1; break;
+      case 'A': axis = 1; sign = -1; break;
+      case 'S': axis = 2; break;
+      case 'I': axis = 2; sign = -1; break;
+      default: break;
+    }
+    if (axis < 0 || used[axis])
+      throw Error(ExitCode::Usage, path + ": --orientation '" + code + "' must name each of L/R, P/A, S/I once");
+    used[axis] = true;
+    d[3 * axis + c] = sign;
+  }
+  return d;
 }
 
 }  // namespace
@@ -177,6 +260,14 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
     scan = read_dicom(path, options);  // a folder, or a single (e.g. enhanced multi-frame) DICOM file
   else
     scan = read_volume_file(path, kind);
+  if (!options.orientation.empty()) {
+    if (scan.info.kind == "dicom")
+      throw Error(ExitCode::Usage, path + ": --orientation applies to volume files; DICOM carries its own orientation");
+    scan.volume.geom.direction = direction_from_code(options.orientation, path);
+    scan.info.warnings.erase(std::remove_if(scan.info.warnings.begin(), scan.info.warnings.end(),
+                                            [](const std::string& w) { return w.find("not anatomical") != std::string::npos; }),
+                             scan.info.warnings.end());
+  }
   finish(scan, options.hu_offset);
   return scan;
 }

@@ -17,6 +17,10 @@ struct ReadOptions {
   // Pick this SeriesInstanceUID when a folder holds several series (empty:
   // the series with the most slices among CT series).
   std::string series_uid;
+  // Volume files only: 3 letters naming where the i, j, k axes point (L/R,
+  // P/A, S/I), replacing the file's direction (for files without anatomical
+  // orientation). Empty: keep the file's.
+  std::string orientation;
 };
 
 struct LoadedScan {

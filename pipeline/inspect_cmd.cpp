@@ -1,0 +1,135 @@
+// `mandisym inspect`: what is in a folder (or file), and what `run` would use.
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "core/error.h"
+#include "core/json.h"
+#include "io/dicom.h"
+#include "io/volume_io.h"
+#include "pipeline/commands.h"
+
+namespace fs = std::filesystem;
+
+namespace ms::pipeline {
+
+const cli::CommandSpec& inspect_spec() {
+  static const cli::CommandSpec s{
+      "inspect",
+      "List the image series in a folder and show which one `run` would use.",
+      "Reads headers only (no pixel data) for DICOM. For each series: modality, description, number of images, "
+      "matrix, pixel spacing, slice spacing along the normal, orientation, gantry tilt, extent, and whether it is "
+      "usable (with the reason when not). Patient name and ID are never read. For a volume file, prints its grid.",
+      {{"PATH", "DICOM folder (searched recursively), DICOM file, or volume file"}},
+      {{"json", "", "print JSON instead of a table", ""}, {"help", "", "show this help", ""}}};
+  return s;
+}
+
+namespace {
+
+std::string shorten(const std::string& uid, std::size_t n) {
+  return uid.size() <= n ? uid : "..." + uid.substr(uid.size() - (n - 3));
+}
+
+}  // namespace
+
+int inspect_command(const cli::Args& a) {
+  const std::string path = a.positional.at(0);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file or directory");
+  const std::string lower_path = [&] {
+    std::string l = path;
+    for (auto& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return l;
+  }();
+  const bool volume_file = !fs::is_directory(path, ec) &&
+                           (lower_path.find(".nii") != std::string::npos || lower_path.find(".nrrd") != std::string::npos ||
+                            lower_path.find(".nhdr") != std::string::npos || lower_path.find(".mha") != std::string::npos ||
+                            lower_path.find(".mhd") != std::string::npos);
+  if (volume_file) {
+    const io::LoadedScan s = io::read_scan(path);
+    const Geometry& g = s.volume.geom;
+    float mn = 1e30f, mx = -1e30f;
+    for (float v : s.volume.hu) mn = std::min(mn, v), mx = std::max(mx, v);
+    if (a.has("json")) {
+      auto o = json::Value::object();
+      o["path"] = path;
+      o["kind"] = s.info.kind;
+      o["size_voxels"] = json::Value::array_of(std::array<double, 3>{double(g.size[0]), double(g.size[1]), double(g.size[2])});
+      o["spacing_mm"] = json::Value::array_of(g.spacing);
+      o["origin_mm"] = json::Value::array_of(g.origin);
+      o["direction"] = json::Value::array_of(g.direction);
+      o["value_range"] = json::Value::array_of(std::array<double, 2>{mn, mx});
+      o["warnings"] = json::Value::array();
+      for (const auto& w : s.info.warnings) o["warnings"].push_back(w);
+      std::cout << o.dump(2) << "\n";
+    } else {
+      std::printf("%s: %s volume, %zu x %zu x %zu voxels, spacing %.3f x %.3f x %.3f mm, values %.0f..%.0f\n", path.c_str(),
+                  s.info.kind.c_str(), g.size[0], g.size[1], g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], mn, mx);
+      for (const auto& w : s.info.warnings) std::printf("  warning: %s\n", w.c_str());
+    }
+    return 0;
+  }
+
+  const io::dicom::ScanResult sc = io::dicom::scan(path);
+  std::vector<io::dicom::Layout> layouts;
+  for (const auto& s : sc.series) layouts.push_back(io::dicom::analyse(s));
+  std::string why;
+  const int chosen = io::dicom::choose(sc, layouts, &why);
+  if (a.has("json")) {
+    auto o = json::Value::object();
+    o["path"] = path;
+    o["files"] = sc.files_seen;
+    o["dicom_files"] = sc.dicom_files;
+    o["non_image_dicom_files"] = sc.non_image_files;
+    o["series"] = json::Value::array();
+    for (std::size_t i = 0; i < sc.series.size(); ++i) {
+      const auto& s = sc.series[i];
+      const auto& L = layouts[i];
+      auto e = json::Value::object();
+      e["label"] = s.label;
+      e["series_uid"] = s.uid;
+      e["modality"] = s.modality;
+      e["description"] = s.description;
+      e["images"] = s.frames.size();
+      e["files"] = s.files.size();
+      e["rows"] = s.frames.empty() ? 0u : s.frames[0].rows;
+      e["columns"] = s.frames.empty() ? 0u : s.frames[0].cols;
+      e["pixel_spacing_mm"] = s.frames.empty() ? json::Value() : json::Value::array_of(std::array<double, 2>{s.frames[0].spacing_i, s.frames[0].spacing_j});
+      e["slice_spacing_mm"] = L.usable ? json::Value(L.nominal_spacing) : json::Value();
+      e["orientation"] = L.orientation;
+      e["tilt_deg"] = L.tilt_deg;
+      e["extent_mm"] = L.extent_mm;
+      e["usable"] = L.usable;
+      e["problem"] = L.problem;
+      e["warnings"] = json::Value::array();
+      for (const auto& w : L.warnings) e["warnings"].push_back(w);
+      e["chosen"] = static_cast<int>(i) == chosen;
+      o["series"].push_back(e);
+    }
+    o["choice"] = why;
+    std::cout << o.dump(2) << "\n";
+    return chosen >= 0 ? 0 : static_cast<int>(ExitCode::InputInvalid);
+  }
+  std::printf("%s: %zu file(s), %zu DICOM, %zu non-image DICOM, %zu image series\n", path.c_str(), sc.files_seen,
+              sc.dicom_files, sc.non_image_files, sc.series.size());
+  if (!sc.series.empty())
+    std::printf("  %-2s %-24s %-4s %-20s %6s %9s %13s %6s %-8s %5s %7s  %s\n", "#", "series", "mod", "description", "images",
+                "matrix", "pixel mm", "slice", "orient", "tilt", "extent", "status");
+  for (std::size_t i = 0; i < sc.series.size(); ++i) {
+    const auto& s = sc.series[i];
+    const auto& L = layouts[i];
+    char matrix[32], pix[32];
+    std::snprintf(matrix, sizeof matrix, "%ux%u", s.frames[0].cols, s.frames[0].rows);
+    std::snprintf(pix, sizeof pix, "%.3fx%.3f", s.frames[0].spacing_i, s.frames[0].spacing_j);
+    std::printf("  %-2zu %-24s %-4s %-20.20s %6zu %9s %13s %6.2f %-8s %5.1f %7.1f  %s%s\n", i + 1,
+                shorten(s.label, 24).c_str(), s.modality.c_str(), s.description.c_str(), s.frames.size(), matrix, pix,
+                L.nominal_spacing, L.orientation.c_str(), L.tilt_deg, L.extent_mm,
+                L.usable ? "ok" : ("not usable: " + L.problem).c_str(), static_cast<int>(i) == chosen ? "  <- chosen" : "");
+    for (const auto& w : L.warnings) std::printf("       note: %s\n", w.c_str());
+  }
+  std::printf("%s %s\n", chosen >= 0 ? "run would use:" : "run would refuse:", why.c_str());
+  return chosen >= 0 ? 0 : static_cast<int>(ExitCode::InputInvalid);
+}
+
+}  // namespace ms::pipeline

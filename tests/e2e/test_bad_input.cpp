@@ -1,0 +1,2 @@
+// placeholder, written by the bad-input test author
+#include <gtest/gtest.h>
