@@ -100,49 +100,58 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   for (const auto& w : scan.info.warnings) S.warnings.push_back("ingest: " + w);
   stage("ingest", 1);
 
-  // 2. segmentation
+  // Stages 2-6: an error names the input it happened on.
   segmentation::Options so;
-  so.bone_threshold_hu = args.number("bone-threshold", so.bone_threshold_hu);
-  segmentation::Result seg = segmentation::segment_mandible(scan.volume, so);
-  S.segmentation_method = seg.method;
-  S.seg_voxels = seg.voxels;
-  S.seg_volume_mm3 = seg.volume_mm3;
-  S.truncated = seg.truncated;
-  for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
-  stage("segment", 2);
-
-  // 3. surface
   surface::Options mo;
-  mo.target_faces = static_cast<std::size_t>(args.number("target-faces", static_cast<double>(mo.target_faces)));
-  surface::Result surf = surface::mesh_from_mask(seg.mask, mo);
-  S.mesh = surf.stats;
-  if (!surf.stats.closed) S.warnings.push_back("surface: the mesh is not closed; distances near holes are unreliable");
-  stage("surface", 3);
-
-  // 4. landmarks
-  S.landmarks = landmarks::detect(surf.mesh);
-  for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
-  stage("landmarks", 4);
-
-  // 5. symmetry plane + reference configuration
-  S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh);
-  for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
-  stage("reference", 5);
-
-  // 6. asymmetry
-  const auto regions = asymmetry::assign_regions(surf.mesh, S.landmarks.landmarks);
-  S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions);
   asymmetry::SafOptions sao;
-  sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
-  S.saf = asymmetry::compute_saf(surf.mesh, S.landmarks.landmarks, S.reference.plane, sao);
-  if (!S.saf.skipped.empty())
-    S.warnings.push_back("asymmetry: " + std::to_string(S.saf.skipped.size()) +
-                         " SAF configuration(s) skipped for missing landmarks");
-  const auto areas = asymmetry::vertex_areas(surf.mesh);
-  if (!S.saf.per_vertex.empty()) S.saf_regions = asymmetry::regional_means(S.saf.per_vertex, areas, regions);
-  S.bilateral = asymmetry::bilateral_measures(S.landmarks.landmarks, S.reference.plane);
-  if (S.truncated) S.warnings.push_back("scores: the mandible is truncated; asymmetry scores are not comparable");
-  stage("asymmetry", 6);
+  segmentation::Result seg;
+  surface::Result surf;
+  asymmetry::Regions regions;
+  try {
+    // 2. segmentation
+    so.bone_threshold_hu = args.number("bone-threshold", so.bone_threshold_hu);
+    seg = segmentation::segment_mandible(scan.volume, so);
+    S.segmentation_method = seg.method;
+    S.seg_voxels = seg.voxels;
+    S.seg_volume_mm3 = seg.volume_mm3;
+    S.truncated = seg.truncated;
+    for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
+    stage("segment", 2);
+
+    // 3. surface
+    mo.target_faces = static_cast<std::size_t>(args.number("target-faces", static_cast<double>(mo.target_faces)));
+    surf = surface::mesh_from_mask(seg.mask, mo);
+    S.mesh = surf.stats;
+    if (!surf.stats.closed) S.warnings.push_back("surface: the mesh is not closed; distances near holes are unreliable");
+    stage("surface", 3);
+
+    // 4. landmarks
+    S.landmarks = landmarks::detect(surf.mesh);
+    for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
+    stage("landmarks", 4);
+
+    // 5. symmetry plane + reference configuration
+    S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh);
+    for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
+    stage("reference", 5);
+
+    // 6. asymmetry
+    regions = asymmetry::assign_regions(surf.mesh, S.landmarks.landmarks);
+    S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions);
+    sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
+    S.saf = asymmetry::compute_saf(surf.mesh, S.landmarks.landmarks, S.reference.plane, sao);
+    if (!S.saf.skipped.empty())
+      S.warnings.push_back("asymmetry: " + std::to_string(S.saf.skipped.size()) +
+                           " SAF configuration(s) skipped for missing landmarks");
+    const auto areas = asymmetry::vertex_areas(surf.mesh);
+    if (!S.saf.per_vertex.empty()) S.saf_regions = asymmetry::regional_means(S.saf.per_vertex, areas, regions);
+    S.bilateral = asymmetry::bilateral_measures(S.landmarks.landmarks, S.reference.plane);
+    if (S.truncated) S.warnings.push_back("scores: the mandible is truncated; asymmetry scores are not comparable");
+    stage("asymmetry", 6);
+
+  } catch (const Error& e) {
+    throw Error(e.code(), input + ": " + e.what());
+  }
 
   S.parameters["hu_offset"] = std::to_string(ro.hu_offset);
   S.parameters["bone_threshold_hu"] = std::to_string(so.bone_threshold_hu);

@@ -13,9 +13,14 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
+#include <optional>
 #include <mutex>
 #include <sstream>
+#include <unistd.h>
+#include <fcntl.h>
 
 #include "core/error.h"
 
@@ -162,6 +167,11 @@ ScanResult scan(const std::string& path) {
   };
   std::map<Key, Series> groups;
   for (const auto& file : files) {
+    if (::access(file.c_str(), R_OK) != 0) {
+      ++res.unreadable_files;
+      if (res.first_unreadable.empty()) res.first_unreadable = file;
+      continue;
+    }
     gdcm::Reader r;
     r.SetFileName(file.c_str());
     const auto size = fs::file_size(file, ec);
@@ -185,7 +195,8 @@ ScanResult scan(const std::string& path) {
       ++res.non_image_files;
       continue;
     }
-    const bool has_pixels = r.GetStreamCurrentPosition() + 8 <= size;
+    const std::size_t pos = r.GetStreamCurrentPosition();  // (size_t)-1 at end of file
+    const bool has_pixels = pos != static_cast<std::size_t>(-1) && pos + 8 <= size;
     Frame base;
     base.file = file;
     base.rows = rows;
@@ -400,12 +411,32 @@ namespace {
 std::vector<double> decode_file(const Series& s, const std::string& file, unsigned rows, unsigned cols, unsigned n_frames) {
   gdcm::ImageReader ir;
   ir.SetFileName(file.c_str());
-  if (!ir.Read()) throw Error(ExitCode::InputInvalid, file + ": cannot read the image (truncated or corrupt DICOM)");
+  if (!ir.Read()) {
+    gdcm::Reader plain;  // tell "no pixel data" apart from corruption
+    plain.SetFileName(file.c_str());
+    if (plain.Read() && !plain.GetFile().GetDataSet().FindDataElement(gdcm::Tag(0x7fe0, 0x0010)))
+      throw Error(ExitCode::InputInvalid, file + ": DICOM image without pixel data");
+    throw Error(ExitCode::InputInvalid, file + ": cannot read the image (truncated or corrupt DICOM)");
+  }
   const gdcm::Image& img = ir.GetImage();
   const std::size_t n = static_cast<std::size_t>(rows) * cols * n_frames;
   const unsigned bytes = s.bits_allocated / 8;
   if (bytes != 1 && bytes != 2 && bytes != 4)
     throw Error(ExitCode::InputInvalid, file + ": unsupported BitsAllocated " + std::to_string(s.bits_allocated));
+  // GDCM sizes its buffer from Rows x Columns and zero-fills what the file
+  // lacks: check the bytes actually present for native pixel data.
+  const gdcm::DataSet& ds = ir.GetFile().GetDataSet();
+  if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010)))
+    throw Error(ExitCode::InputInvalid, file + ": DICOM image without pixel data");
+  const gdcm::DataElement& pd = ds.GetDataElement(gdcm::Tag(0x7fe0, 0x0010));
+  if (const gdcm::ByteValue* bv = pd.GetByteValue()) {
+    if (bv->GetLength() < n * bytes)
+      throw Error(ExitCode::InputInvalid, file + ": pixel data holds " + std::to_string(bv->GetLength()) +
+                                              " bytes, Rows x Columns x frames needs " + std::to_string(n * bytes) +
+                                              " (truncated file or wrong Rows/Columns)");
+  } else if (!pd.GetSequenceOfFragments()) {
+    throw Error(ExitCode::InputInvalid, file + ": DICOM image without pixel data");
+  }
   const unsigned long len = img.GetBufferLength();
   if (len < n * bytes)
     throw Error(ExitCode::InputInvalid, file + ": pixel data holds " + std::to_string(len) + " bytes, Rows x Columns x frames needs " +
@@ -430,6 +461,32 @@ std::vector<double> decode_file(const Series& s, const std::string& file, unsign
   return out;
 }
 
+// Codec libraries (libjpeg, OpenJPEG) print to stderr on corrupt streams; our
+// own one-line error says what happened. Redirects fd 2 to /dev/null for the
+// lifetime of the object (decoding only; nothing else prints meanwhile).
+class SilenceStderr {
+ public:
+  SilenceStderr() {
+    std::fflush(stderr);
+    saved_ = ::dup(2);
+    const int devnull = ::open("/dev/null", O_WRONLY);
+    if (saved_ >= 0 && devnull >= 0) ::dup2(devnull, 2);
+    if (devnull >= 0) ::close(devnull);
+  }
+  ~SilenceStderr() {
+    std::fflush(stderr);
+    if (saved_ >= 0) {
+      ::dup2(saved_, 2);
+      ::close(saved_);
+    }
+  }
+  SilenceStderr(const SilenceStderr&) = delete;
+  SilenceStderr& operator=(const SilenceStderr&) = delete;
+
+ private:
+  int saved_ = -1;
+};
+
 }  // namespace
 
 Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings) {
@@ -448,6 +505,8 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
   std::size_t padded = 0, clamped = 0;
   std::string error;
   std::mutex mu;
+  std::optional<SilenceStderr> silence;
+  if (!std::getenv("MANDISYM_DEBUG_CODECS")) silence.emplace();
 #pragma omp parallel for schedule(dynamic, 4) reduction(+ : padded, clamped)
   for (long fi = 0; fi < static_cast<long>(file_list.size()); ++fi) {
     const std::string& file = file_list[static_cast<std::size_t>(fi)];
@@ -458,7 +517,7 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
       for (const auto& fr : s.frames)
         if (fr.file == file) ++in_file;
       stored = decode_file(s, file, rows, cols, in_file);
-    } catch (const Error& e) {
+    } catch (const std::exception& e) {  // nothing may escape the parallel region
       std::lock_guard<std::mutex> lock(mu);
       if (error.empty()) error = e.what();
       continue;
@@ -487,6 +546,7 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
       hu[i] = std::move(out);
     }
   }
+  silence.reset();
   if (!error.empty()) throw Error(ExitCode::InputInvalid, error);
   // Duplicates must be identical to the slice kept at their position.
   std::size_t dropped = 0;

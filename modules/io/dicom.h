@@ -58,6 +58,8 @@ struct ScanResult {
   std::size_t files_seen = 0;        // regular files looked at
   std::size_t dicom_files = 0;       // parsed as DICOM
   std::size_t non_image_files = 0;   // DICOM without an image (SR, RTSTRUCT, ...)
+  std::size_t unreadable_files = 0;  // could not be opened (permissions)
+  std::string first_unreadable;
   std::string first_non_dicom;       // for messages
 };
 

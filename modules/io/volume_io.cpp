@@ -20,8 +20,11 @@
 #include <filesystem>
 #include <iomanip>
 #include <mutex>
+#include <cstring>
 #include <fstream>
+#include <zlib.h>
 #include <sstream>
+#include <cerrno>
 #include <unistd.h>
 
 #include "core/error.h"
@@ -114,6 +117,8 @@ void finish(LoadedScan& scan, double hu_offset) {
 LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
   const dicom::ScanResult sc = dicom::scan(path);
   if (sc.files_seen == 0) throw Error(ExitCode::InputInvalid, path + ": folder is empty");
+  if (sc.unreadable_files == sc.files_seen)
+    throw Error(ExitCode::InputNotFound, path + ": no file can be read (permission denied), e.g. " + sc.first_unreadable);
   if (sc.dicom_files == 0)
     throw Error(ExitCode::InputInvalid, path + ": no DICOM files (" + std::to_string(sc.files_seen) + " file(s), e.g. " +
                                             sc.first_non_dicom + " is not DICOM)");
@@ -151,8 +156,99 @@ LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
   scan.info.series_description = s.description;
   scan.info.warnings = layouts[chosen].warnings;
   if (sc.series.size() > 1) scan.info.warnings.push_back(std::to_string(sc.series.size()) + " image series found; used " + s.label);
+  if (sc.unreadable_files)
+    scan.info.warnings.push_back(std::to_string(sc.unreadable_files) + " file(s) could not be opened (permission denied), e.g. " +
+                                 sc.first_unreadable);
   scan.volume = dicom::assemble(s, layouts[chosen], scan.info.warnings);
   return scan;
+}
+
+// The NIfTI library replaces NaN/Inf by 0 and zero-fills a short file while
+// reading, hiding both; check the payload ourselves. Also catches
+// zero-sized dimensions. Throws ms::Error(InputInvalid).
+void check_nifti_payload(const std::string& path) {
+  gzFile f = gzopen(path.c_str(), "rb");  // reads plain .nii too
+  if (!f) return;  // ITK will report it
+  struct Closer {
+    gzFile f;
+    ~Closer() { gzclose(f); }
+  } closer{f};
+  unsigned char hdr[348];
+  if (gzread(f, hdr, sizeof hdr) != static_cast<int>(sizeof hdr)) throw Error(ExitCode::InputInvalid, path + ": NIfTI header is truncated");
+  auto i32 = [&](int off, bool swap) {
+    std::uint32_t v;
+    std::memcpy(&v, hdr + off, 4);
+    if (swap) v = __builtin_bswap32(v);
+    return static_cast<std::int32_t>(v);
+  };
+  auto i16 = [&](int off, bool swap) {
+    std::uint16_t v;
+    std::memcpy(&v, hdr + off, 2);
+    if (swap) v = __builtin_bswap16(v);
+    return static_cast<std::int16_t>(v);
+  };
+  bool swap = false;
+  if (i32(0, false) != 348) {
+    if (i32(0, true) != 348) return;  // not NIfTI-1 (e.g. NIfTI-2): leave it to ITK
+    swap = true;
+  }
+  const int ndim = i16(40, swap);
+  if (ndim < 1 || ndim > 7) throw Error(ExitCode::InputInvalid, path + ": NIfTI header has " + std::to_string(ndim) + " dimensions");
+  std::uint64_t nvox = 1;
+  for (int d = 1; d <= ndim; ++d) {
+    const int n = i16(40 + 2 * d, swap);
+    if (n <= 0) throw Error(ExitCode::InputInvalid, path + ": NIfTI dimension " + std::to_string(d) + " has size " + std::to_string(n));
+    nvox *= static_cast<std::uint64_t>(n);
+  }
+  const int datatype = i16(70, swap), bitpix = i16(72, swap);
+  float vox_offset;
+  std::memcpy(&vox_offset, hdr + 108, 4);
+  if (swap) {
+    std::uint32_t v;
+    std::memcpy(&v, &vox_offset, 4);
+    v = __builtin_bswap32(v);
+    std::memcpy(&vox_offset, &v, 4);
+  }
+  const bool single_file = std::memcmp(hdr + 344, "n+1", 3) == 0;
+  if (!single_file || bitpix <= 0) return;  // .hdr/.img pairs: leave to ITK
+  const std::uint64_t skip = static_cast<std::uint64_t>(vox_offset) > 348 ? static_cast<std::uint64_t>(vox_offset) - 348 : 0;
+  std::vector<unsigned char> buf(1 << 20);
+  for (std::uint64_t left = skip; left > 0;) {
+    const int got = gzread(f, buf.data(), static_cast<unsigned>(std::min<std::uint64_t>(left, buf.size())));
+    if (got <= 0) throw Error(ExitCode::InputInvalid, path + ": NIfTI file ends before its image data");
+    left -= static_cast<std::uint64_t>(got);
+  }
+  const std::uint64_t bytes = nvox * static_cast<std::uint64_t>(bitpix / 8);
+  std::uint64_t read = 0, bad = 0;
+  const int unit = datatype == 16 ? 4 : datatype == 64 ? 8 : 0;  // float32 / float64
+  while (read < bytes) {
+    const int got = gzread(f, buf.data(), static_cast<unsigned>(std::min<std::uint64_t>(bytes - read, buf.size())));
+    if (got <= 0) break;
+    if (unit) {
+      for (int o = 0; o + unit <= got; o += unit) {
+        if (unit == 4) {
+          std::uint32_t v;
+          std::memcpy(&v, buf.data() + o, 4);
+          if (swap) v = __builtin_bswap32(v);
+          float x;
+          std::memcpy(&x, &v, 4);
+          bad += !std::isfinite(x);
+        } else {
+          std::uint64_t v;
+          std::memcpy(&v, buf.data() + o, 8);
+          if (swap) v = __builtin_bswap64(v);
+          double x;
+          std::memcpy(&x, &v, 8);
+          bad += !std::isfinite(x);
+        }
+      }
+    }
+    read += static_cast<std::uint64_t>(got);
+  }
+  if (read < bytes)
+    throw Error(ExitCode::InputInvalid, path + ": NIfTI file holds " + std::to_string(read) + " bytes of image data, its header promises " +
+                                            std::to_string(bytes));
+  if (bad) throw Error(ExitCode::InputInvalid, path + ": " + std::to_string(bad) + " voxels are NaN or infinite");
 }
 
 // NRRD headers that combine "space:" with per-axis "spacings:" (legal in
@@ -190,6 +286,7 @@ std::string patched_nrrd_header(const std::string& path, std::string& note) {
 }
 
 LoadedScan read_volume_file(const std::string& path, const std::string& kind) {
+  if (kind == "nifti") check_nifti_payload(path);
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
   std::string note;
@@ -254,6 +351,9 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   register_factories();
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file or directory");
+  const bool dir = fs::is_directory(path, ec);
+  if (::access(path.c_str(), dir ? (R_OK | X_OK) : R_OK) != 0)
+    throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
   LoadedScan scan;
   const std::string kind = fs::is_directory(path, ec) ? "" : volume_kind(path);
   if (kind.empty())

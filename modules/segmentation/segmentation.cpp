@@ -47,9 +47,9 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   const auto* labels = relabel->GetOutput()->GetBufferPointer();
   const unsigned n_labels = static_cast<unsigned>(relabel->GetNumberOfObjects());
   if (n_labels == 0)
-    throw Error(ExitCode::NoMandible, "no bone found (no component above " +
+    throw Error(ExitCode::NoMandible, "no mandible found: no bone (no connected region above " +
                                           std::to_string(static_cast<int>(opt.bone_threshold_hu)) + " HU of at least " +
-                                          std::to_string(opt.min_component_cm3) + " cm3)");
+                                          std::to_string(static_cast<int>(std::lround(opt.min_component_cm3))) + " cm3)");
 
   std::vector<Component> comps(n_labels + 1);
   for (std::size_t k = 0; k < g.size[2]; ++k)

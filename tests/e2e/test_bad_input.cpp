@@ -1,2 +1,634 @@
-// placeholder, written by the bad-input test author
+// End to end: the mandisym binary refuses bad input cleanly.
+//
+// Every case is generated here (DICOM through the GDCM forge, NIfTI written by
+// hand) and run through the real binary, `mandisym run INPUT -o OUTDIR`. The
+// contract checked for every case (README.md, "Exit codes"):
+//   1. the documented non-zero exit code (2 usage, 3 input not found or
+//      unreadable, 4 invalid input, 5 no mandible, 6 geometry);
+//   2. stderr is exactly one line, starting "mandisym: error: ", naming the
+//      offending path (the input given, and the file inside it when the
+//      problem is one file);
+//   3. no crash: death by a signal or exit code 1 (internal error) fails;
+//   4. OUTDIR holds no results.json and no report.html afterwards.
 #include <gtest/gtest.h>
+#include <fcntl.h>
+#include <grp.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tests/support/dicom_forge.h"
+
+namespace fs = std::filesystem;
+using ms::Vec3;
+using ms::testing::SliceSpec;
+
+namespace {
+
+const std::string kBin = MANDISYM_BINARY;
+const std::string kPrefix = "mandisym: error: ";
+
+// ---------------------------------------------------------------- helpers
+
+// A fresh folder per test (test name + pid), removed afterwards even when it
+// was made unreadable.
+class TempCase {
+ public:
+  TempCase() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    root_ = fs::temp_directory_path() /
+            ("mandisym_bad_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
+    remove();
+    fs::create_directories(root_);
+  }
+  // MANDISYM_KEEP_BAD_INPUT=1 keeps the folders (to reproduce a failure by hand).
+  ~TempCase() {
+    if (!std::getenv("MANDISYM_KEEP_BAD_INPUT")) remove();
+  }
+  const fs::path& root() const { return root_; }
+  fs::path operator/(const std::string& s) const { return root_ / s; }
+  fs::path out() const { return root_ / "out"; }
+
+ private:
+  void remove() {
+    std::error_code ec;
+    if (!fs::exists(root_, ec)) return;
+    for (auto it = fs::recursive_directory_iterator(root_, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+      ::chmod(it->path().c_str(), 0755);
+    ::chmod(root_.c_str(), 0755);
+    // A chmod 000 folder is not descended into above: open it first.
+    for (const auto& e : fs::directory_iterator(root_, ec)) ::chmod(e.path().c_str(), 0755);
+    fs::remove_all(root_, ec);
+  }
+  fs::path root_;
+};
+
+struct RunResult {
+  bool exited = false;    // normal exit (not a signal)
+  int code = -1;          // exit code when exited
+  int signal = 0;         // signal when not exited
+  std::string err;        // stderr
+  std::string command;    // for messages
+};
+
+// Runs `mandisym ARGS...` (fork/exec, no shell); stdout discarded, stderr captured.
+// as_nobody: when the test runs as root, the binary runs as uid/gid 65534 so
+// that file permissions apply (root ignores them).
+RunResult run_binary(const std::vector<std::string>& args, const fs::path& scratch, bool as_nobody = false) {
+  RunResult r;
+  r.command = kBin;
+  for (const auto& a : args) r.command += " " + a;
+  const fs::path errf = scratch.parent_path() / (scratch.filename().string() + ".stderr");
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int out = ::open("/dev/null", O_WRONLY);
+    const int err = ::open(errf.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (out >= 0) ::dup2(out, 1);
+    if (err >= 0) ::dup2(err, 2);
+    if (as_nobody && ::geteuid() == 0) {
+      if (::setgroups(0, nullptr) != 0 || ::setgid(65534) != 0 || ::setuid(65534) != 0) ::_exit(126);
+    }
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(kBin.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(kBin.c_str(), argv.data());
+    ::_exit(127);
+  }
+  int st = 0;
+  ::waitpid(pid, &st, 0);
+  r.exited = WIFEXITED(st);
+  r.code = r.exited ? WEXITSTATUS(st) : -1;
+  r.signal = WIFSIGNALED(st) ? WTERMSIG(st) : 0;
+  std::ifstream f(errf);
+  std::stringstream s;
+  s << f.rdbuf();
+  r.err = s.str();
+  std::error_code ec;
+  fs::remove(errf, ec);
+  return r;
+}
+
+// `mandisym run INPUT -o OUTDIR [extra...]`
+RunResult run_on(const fs::path& input, const fs::path& out, const std::vector<std::string>& extra = {},
+                 bool as_nobody = false) {
+  std::vector<std::string> args{"run", input.string(), "-o", out.string(), "--quiet", "--no-figures"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return run_binary(args, out, as_nobody);
+}
+
+// For the permission cases: run unprivileged; skip when that is impossible.
+#define RUN_UNPRIVILEGED_OR_SKIP(result, input, out)                                              \
+  const RunResult result = run_on(input, out, {}, true);                                          \
+  if (result.exited && (result.code == 126 || result.code == 127) && result.err.empty())          \
+    GTEST_SKIP() << "running as root and cannot run the binary as an unprivileged user";
+
+// The contract. names: strings the one line must contain (paths, key words).
+void expect_refused(const RunResult& r, int expected_code, const fs::path& out, const std::vector<std::string>& names) {
+  SCOPED_TRACE(r.command);
+  ASSERT_TRUE(r.exited) << "killed by signal " << r.signal << "; stderr:\n" << r.err;
+  EXPECT_NE(r.code, 1) << "internal error; stderr:\n" << r.err;
+  EXPECT_EQ(r.code, expected_code) << "stderr:\n" << r.err;
+  // Exactly one line.
+  EXPECT_FALSE(r.err.empty());
+  const auto nl = std::count(r.err.begin(), r.err.end(), '\n');
+  EXPECT_EQ(nl, 1) << "stderr is not one line:\n" << r.err;
+  EXPECT_TRUE(!r.err.empty() && r.err.back() == '\n') << r.err;
+  EXPECT_EQ(r.err.rfind(kPrefix, 0), 0u) << "stderr does not start with '" << kPrefix << "':\n" << r.err;
+  for (const auto& n : names) EXPECT_NE(r.err.find(n), std::string::npos) << "stderr does not name '" << n << "':\n" << r.err;
+  EXPECT_FALSE(fs::exists(out / "results.json")) << "results.json written for refused input";
+  EXPECT_FALSE(fs::exists(out / "report.html")) << "report.html written for refused input";
+}
+
+// HU functions.
+double water_cylinder(const Vec3& p) {
+  return (p[0] - 10) * (p[0] - 10) + (p[1] - 9) * (p[1] - 9) < 64 ? 0.0 : -1000.0;
+}
+// Noisy but deterministic (makes compressed streams long enough to corrupt).
+double noisy(const Vec3& p) {
+  std::uint32_t h = static_cast<std::uint32_t>(std::lround(p[0] * 131 + p[1] * 71 + p[2] * 17) * 2654435761u);
+  h ^= h >> 13;
+  return -1000.0 + static_cast<double>(h % 2500);
+}
+
+SliceSpec ct_base(const std::string& series_uid = "1.2.826.0.1.3680043.10.1.1") {
+  SliceSpec s;
+  s.series_uid = series_uid;
+  return s;
+}
+
+// A good 12-slice axial CT series of a uniform (water) phantom, 1 mm apart.
+std::vector<SliceSpec> good_series(const fs::path& dir, SliceSpec base = ct_base(), int n = 12, const std::string& prefix = "s") {
+  return ms::testing::write_series(dir.string(), base, n, 0.0, 1.0, water_cylinder, prefix);
+}
+
+std::string slice_name(const fs::path& dir, int k, const std::string& prefix = "s") {
+  std::ostringstream n;
+  n << prefix << "_" << std::setw(3) << std::setfill('0') << k << ".dcm";
+  return (dir / n.str()).string();
+}
+
+// NIfTI-1 single file (.nii) written by hand: 348-byte header, 4 bytes of
+// extension flag, float32 data at 352. dims: dim[1..] (dim[0] = dims.size()).
+void write_nifti(const fs::path& path, const std::vector<int>& dims, const std::vector<float>& data,
+                 double spacing = 1.0) {
+  unsigned char h[352];
+  std::memset(h, 0, sizeof h);
+  auto i32 = [&](int off, std::int32_t v) { std::memcpy(h + off, &v, 4); };
+  auto i16 = [&](int off, std::int16_t v) { std::memcpy(h + off, &v, 2); };
+  auto f32 = [&](int off, float v) { std::memcpy(h + off, &v, 4); };
+  i32(0, 348);                                 // sizeof_hdr
+  h[38] = 'r';                                 // regular
+  i16(40, static_cast<std::int16_t>(dims.size()));  // dim[0]
+  for (std::size_t a = 0; a < 7; ++a) i16(42 + 2 * static_cast<int>(a), a < dims.size() ? static_cast<std::int16_t>(dims[a]) : 1);
+  i16(70, 16);                                 // datatype float32
+  i16(72, 32);                                 // bitpix
+  f32(76, 1.0f);                               // pixdim[0] (qfac)
+  for (int a = 1; a < 8; ++a) f32(76 + 4 * a, static_cast<float>(spacing));
+  f32(108, 352.0f);                            // vox_offset
+  f32(112, 1.0f);                              // scl_slope
+  f32(116, 0.0f);                              // scl_inter
+  h[123] = 2;                                  // xyzt_units: mm
+  i16(252, 0);                                 // qform_code
+  i16(254, 0);                                 // sform_code
+  std::memcpy(h + 344, "n+1\0", 4);            // magic
+  std::ofstream f(path, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(h), sizeof h);
+  f.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size() * sizeof(float)));
+  ASSERT_TRUE(f.good()) << path;
+}
+
+std::vector<float> head_like(std::size_t n) {
+  std::vector<float> v(n, -1000.0f);
+  for (std::size_t i = 0; i < n; i += 3) v[i] = 40.0f;
+  return v;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- positive control
+
+// A good forged series passes ingest; the uniform phantom holds no bone, so the
+// run stops at segmentation with exit 5 (also the "scan without a mandible" case).
+TEST(BadInput, PositiveControlGoodSeriesWithoutMandibleExits5) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  // The message of a segmentation failure should still name the scan (README:
+  // "Errors are one line on stderr, naming the file and the problem").
+  // KNOWN BUG (see report): segmentation's "no bone found" message does not name the input.
+  expect_refused(run_on(in, t.out()), 5, t.out(), {in.string()});
+}
+
+// ---------------------------------------------------------------- folders and files
+
+TEST(BadInput, EmptyFolder) {
+  TempCase t;
+  const fs::path in = t / "empty";
+  fs::create_directories(in);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "empty"});
+}
+
+TEST(BadInput, FolderOfNonDicomFiles) {
+  TempCase t;
+  const fs::path in = t / "junk";
+  fs::create_directories(in);
+  std::ofstream(in / "notes.txt") << "this is not a CT scan\nsecond line\n";
+  {
+    std::ofstream png(in / "picture.png", std::ios::binary);
+    const unsigned char sig[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13, 'I', 'H', 'D', 'R'};
+    png.write(reinterpret_cast<const char*>(sig), sizeof sig);
+    for (int i = 0; i < 4000; ++i) png.put(static_cast<char>((i * 37 + 11) & 0xff));
+  }
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "not DICOM"});
+}
+
+TEST(BadInput, SingleTextFileAsInput) {
+  TempCase t;
+  const fs::path in = t / "scan.txt";
+  std::ofstream(in) << "patient: nobody\nnot an image\n";
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
+}
+
+TEST(BadInput, PathDoesNotExist) {
+  TempCase t;
+  const fs::path in = t / "no_such_folder";
+  expect_refused(run_on(in, t.out()), 3, t.out(), {in.string()});
+}
+
+TEST(BadInput, FolderWithoutReadPermission) {
+  TempCase t;
+  const fs::path in = t / "locked";
+  good_series(in);
+  ASSERT_EQ(::chmod(in.c_str(), 0000), 0);
+  // Root ignores permissions: the binary then runs as nobody (65534).
+  // KNOWN BUG (see report): exit 4 "folder is empty" instead of 3.
+  RUN_UNPRIVILEGED_OR_SKIP(r, in, t.out());
+  expect_refused(r, 3, t.out(), {in.string()});
+}
+
+TEST(BadInput, SingleDicomFileWithoutReadPermission) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in, ct_base(), 1);
+  const fs::path file = slice_name(in, 0);
+  ASSERT_EQ(::chmod(file.c_str(), 0000), 0);
+  // KNOWN BUG (see report): exit 4 "... is not DICOM" instead of 3.
+  RUN_UNPRIVILEGED_OR_SKIP(r, file, t.out());
+  expect_refused(r, 3, t.out(), {file.string()});
+}
+
+TEST(BadInput, NiftiWithoutReadPermission) {
+  TempCase t;
+  const fs::path in = t / "ok.nii";
+  write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
+  ASSERT_EQ(::chmod(in.c_str(), 0000), 0);
+  // KNOWN BUG (see report): exit 4 "Could not create IO object" instead of 3.
+  RUN_UNPRIVILEGED_OR_SKIP(r, in, t.out());
+  expect_refused(r, 3, t.out(), {in.string()});
+}
+
+// ---------------------------------------------------------------- broken DICOM
+
+TEST(BadInput, TruncatedPixelDataInOneSlice) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  // Rewrite slice 5 with its pixel data cut short.
+  SliceSpec s = ct_base();
+  s.ipp = {0, 0, 5.0};
+  s.instance = 6;
+  s.stored.assign(static_cast<std::size_t>(s.rows) * s.cols, ms::testing::stored_for(s, 0));
+  s.truncate_pixel_bytes = 500;
+  const std::string bad = slice_name(in, 5);
+  ms::testing::write_slice(bad, s);
+  // KNOWN BUG (see report): not detected; GDCM zero-fills the missing bytes,
+  // the slice becomes air and the run continues to segmentation (exit 5).
+  // The forge really cut the pixel data (file ~500 bytes shorter than its neighbour).
+  const auto shorter = static_cast<long>(fs::file_size(slice_name(in, 4))) - static_cast<long>(fs::file_size(bad));
+  ASSERT_GE(shorter, 490);
+  ASSERT_LE(shorter, 510);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {bad});
+}
+
+TEST(BadInput, DicomWithoutPixelData) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  SliceSpec base = ct_base();
+  base.omit_pixel_data = true;
+  ms::testing::write_series(in.string(), base, 12, 0.0, 1.0, water_cylinder);
+  // KNOWN BUG (see report): refused with 4 naming the file, but as "cannot read
+  // the image (truncated or corrupt DICOM)": the ingest's own "DICOM image
+  // without pixel data" check (dicom::scan has_pixels) never fires.
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), ".dcm", "pixel data"});
+}
+
+TEST(BadInput, OneSliceWithoutPixelDataNamesIt) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  SliceSpec s = ct_base();
+  s.ipp = {0, 0, 7.0};
+  s.instance = 8;
+  s.omit_pixel_data = true;
+  const std::string bad = slice_name(in, 7);
+  ms::testing::write_slice(bad, s);
+  // KNOWN BUG (see report): message says "truncated or corrupt", not "pixel data".
+  expect_refused(run_on(in, t.out()), 4, t.out(), {bad, "pixel data"});
+}
+
+TEST(BadInput, RowsColumnsLargerThanPixelData) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  // Rows x Columns say 24 x 28, the pixel data holds a 10 x 10 image.
+  SliceSpec base = ct_base();
+  base.truncate_pixel_bytes = (24 * 28 - 10 * 10) * 2;
+  // KNOWN BUG (see report): not detected (zero-filled), run reaches segmentation (exit 5).
+  ms::testing::write_series(in.string(), base, 12, 0.0, 1.0, water_cylinder);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), ".dcm"});
+}
+
+TEST(BadInput, CorruptJpegLosslessStream) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  SliceSpec base = ct_base();
+  base.rows = 64;
+  base.cols = 64;
+  base.transfer_syntax = "jpeg-lossless";
+  ms::testing::write_series(in.string(), base, 12, 0.0, 1.0, noisy);
+  const std::string bad = slice_name(in, 6);
+  std::string bytes = slurp(bad);
+  // Pixel data element (7FE0,0010), then the JPEG start of scan (FFDA).
+  const std::string tag("\xe0\x7f\x10\x00", 4);
+  const auto px = bytes.rfind(tag);
+  ASSERT_NE(px, std::string::npos);
+  const auto sos = bytes.find(std::string("\xff\xda", 2), px);
+  const auto eoi = bytes.rfind(std::string("\xff\xd9", 2));
+  ASSERT_NE(sos, std::string::npos);
+  ASSERT_NE(eoi, std::string::npos);
+  ASSERT_GT(eoi, sos + 200) << "entropy-coded segment too short to corrupt";
+  // Overwrite the middle half of the entropy-coded data with garbage,
+  // including stray marker bytes.
+  const std::size_t a = sos + (eoi - sos) / 4, b = sos + 3 * (eoi - sos) / 4;
+  std::uint32_t x = 12345;
+  for (std::size_t i = a; i < b; ++i) {
+    x = x * 1103515245u + 12345u;
+    bytes[i] = static_cast<char>((i % 17 == 0) ? 0xff : (x >> 16) & 0xff);
+  }
+  std::ofstream(bad, std::ios::binary | std::ios::trunc) << bytes;
+  const RunResult r = run_on(in, t.out());
+  // Observed with GDCM 3.0.21: decoding the garbage fails and the run is
+  // refused with exit 4 naming the file ("cannot decode the pixel data").
+  // KNOWN BUG (see report): libjpeg's own warnings ("Corrupt JPEG data: premature
+  // end of data segment", "Bogus marker length") precede the error line on stderr.
+  // Should a decoder ever accept the garbage, the run must still not crash or
+  // hit an internal error; if it fails at ingest it fails with 4 (codes 0, 5, 6
+  // mean ingest passed: the garbage decoded into some image).
+  ASSERT_TRUE(r.exited) << "killed by signal " << r.signal << "; stderr:\n" << r.err;
+  ASSERT_NE(r.code, 1) << r.err;
+  if (r.code == 0 || r.code == 5 || r.code == 6) {
+    std::cerr << "note: GDCM decoded the corrupt JPEG stream without error (exit " << r.code << ")\n";
+    return;
+  }
+  expect_refused(r, 4, t.out(), {bad});
+}
+
+TEST(BadInput, GarbageAfterDicomPreamble) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  // Slice 3 keeps the 128-byte preamble and "DICM" but the rest is garbage.
+  const std::string bad = slice_name(in, 3);
+  std::string bytes(128, '\0');
+  bytes += "DICM";
+  for (int i = 0; i < 3000; ++i) bytes += static_cast<char>((i * 91 + 7) & 0xff);
+  std::ofstream(bad, std::ios::binary | std::ios::trunc) << bytes;
+  const RunResult r = run_on(in, t.out());
+  // 11 good slices remain, but the 1 mm grid now has a 2 mm gap: a folder that
+  // ingests must not crash; the uniform phantom then has no mandible (5).
+  // Either refusal is acceptable; a crash or internal error is not.
+  // KNOWN BUG (see report): the exit-5 message does not name the input.
+  SCOPED_TRACE(r.err);
+  ASSERT_TRUE(r.exited);
+  EXPECT_TRUE(r.code == 4 || r.code == 5) << r.code;
+  expect_refused(r, r.code, t.out(), {in.string()});
+}
+
+// ---------------------------------------------------------------- not CT
+
+TEST(BadInput, MrOnlySeries) {
+  TempCase t;
+  const fs::path in = t / "mr";
+  SliceSpec base = ct_base();
+  base.modality = "MR";
+  base.sop_class = "1.2.840.10008.5.1.4.1.1.4";  // MR Image Storage
+  ms::testing::write_series(in.string(), base, 12, 0.0, 1.0, water_cylinder);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "no CT"});
+}
+
+TEST(BadInput, ColourImagesLabelledCt) {
+  TempCase t;
+  const fs::path in = t / "rgb";
+  for (int k = 0; k < 12; ++k) {
+    SliceSpec s = ct_base();
+    s.samples_per_pixel = 3;
+    s.photometric = "RGB";
+    s.ipp = {0, 0, static_cast<double>(k)};
+    s.instance = k + 1;
+    s.stored.assign(static_cast<std::size_t>(s.rows) * s.cols * 3, 100 + k);
+    ms::testing::write_slice(slice_name(in, k), s);
+  }
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "colour"});
+}
+
+TEST(BadInput, LocalizerOnlyCt) {
+  TempCase t;
+  const fs::path in = t / "scout";
+  SliceSpec base = ct_base();
+  base.image_type = "ORIGINAL\\PRIMARY\\LOCALIZER";
+  ms::testing::write_series(in.string(), base, 10, 0.0, 1.0, water_cylinder);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "localizer"});
+}
+
+// ---------------------------------------------------------------- too few slices
+
+TEST(BadInput, SingleCtSlice) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in, ct_base(), 1);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "single slice"});
+}
+
+TEST(BadInput, TwoCtSlices) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in, ct_base(), 2);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "2 slices"});
+}
+
+TEST(BadInput, SingleDicomFileAsInput) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in, ct_base(), 1);
+  const fs::path file = slice_name(in, 0);
+  expect_refused(run_on(file, t.out()), 4, t.out(), {file.string(), "single slice"});
+}
+
+// ---------------------------------------------------------------- geometry of the stack
+
+TEST(BadInput, FiveConsecutiveSlicesMissing) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in, ct_base(), 20);
+  for (int k = 8; k < 13; ++k) fs::remove(slice_name(in, k));
+  // The message names the folder and the two files around the gap.
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "missing", slice_name(in, 7), slice_name(in, 13)});
+}
+
+TEST(BadInput, TwoDifferentImagesAtTheSamePosition) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  // Same IPP as slice 4, different pixel values.
+  SliceSpec s = ct_base();
+  s.ipp = {0, 0, 4.0};
+  s.instance = 99;
+  s.stored.assign(static_cast<std::size_t>(s.rows) * s.cols, ms::testing::stored_for(s, 300));
+  const std::string extra = (in / "z_extra.dcm").string();
+  ms::testing::write_slice(extra, s);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {slice_name(in, 4), extra, "same position"});
+}
+
+TEST(BadInput, InconsistentPixelSpacing) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  SliceSpec s = ct_base();
+  s.ipp = {0, 0, 6.0};
+  s.instance = 7;
+  s.spacing_i = 1.25;
+  s.spacing_j = 1.25;
+  const std::string bad = slice_name(in, 6);
+  ms::testing::write_slice(bad, s);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), bad, "spacing"});
+}
+
+TEST(BadInput, MissingImagePositionPatient) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  SliceSpec s = ct_base();
+  s.ipp = {0, 0, 3.0};
+  s.instance = 4;
+  s.omit_ipp = true;
+  const std::string bad = slice_name(in, 3);
+  ms::testing::write_slice(bad, s);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {bad, "ImagePositionPatient"});
+}
+
+TEST(BadInput, NonOrthonormalImageOrientation) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  SliceSpec base = ct_base();
+  base.row_dir = {1, 0, 0};
+  base.col_dir = {0.5, 0.8660254, 0};  // 60 degrees from the row direction
+  ms::testing::write_series(in.string(), base, 12, 0.0, 1.0, water_cylinder);
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), ".dcm", "orthonormal"});
+}
+
+// ---------------------------------------------------------------- series selection
+
+TEST(BadInput, SeriesUidThatDoesNotExist) {
+  TempCase t;
+  const fs::path in = t / "ct";
+  good_series(in);
+  const std::string uid = "1.2.826.0.1.3680043.10.999.999";
+  expect_refused(run_on(in, t.out(), {"--series", uid}), 4, t.out(), {in.string(), uid, "not found"});
+}
+
+TEST(BadInput, SeriesNamingTheMrSeriesOfAMixedFolder) {
+  TempCase t;
+  const fs::path in = t / "mixed";
+  good_series(in, ct_base("1.2.826.0.1.3680043.10.1.1"), 12, "ct");
+  SliceSpec mr = ct_base("1.2.826.0.1.3680043.10.2.2");
+  mr.modality = "MR";
+  mr.sop_class = "1.2.840.10008.5.1.4.1.1.4";
+  ms::testing::write_series(in.string(), mr, 12, 0.0, 1.0, water_cylinder, "mr");
+  expect_refused(run_on(in, t.out(), {"--series", mr.series_uid}), 4, t.out(), {in.string(), mr.series_uid, "MR"});
+}
+
+// ---------------------------------------------------------------- volume files
+
+TEST(BadInput, NiftiWithNaNs) {
+  TempCase t;
+  const fs::path in = t / "nan.nii";
+  std::vector<float> v = head_like(16 * 16 * 16);
+  for (std::size_t i = 100; i < 140; ++i) v[i] = std::numeric_limits<float>::quiet_NaN();
+  write_nifti(in, {16, 16, 16}, v);
+  // KNOWN BUG (see report): the NIfTI library replaces NaN/Inf by 0 while
+  // reading, so the NaN check never sees them; the run continues (exit 5).
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "NaN"});
+}
+
+TEST(BadInput, NiftiWithZeroSizedDimension) {
+  TempCase t;
+  const fs::path in = t / "zero.nii";
+  write_nifti(in, {16, 16, 0}, {});
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
+}
+
+TEST(BadInput, NiftiTwoByTwoByTwo) {
+  TempCase t;
+  const fs::path in = t / "tiny.nii";
+  write_nifti(in, {2, 2, 2}, head_like(8));
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "too small"});
+}
+
+TEST(BadInput, NiftiSingle2DSlice) {
+  TempCase t;
+  const fs::path in = t / "slice2d.nii";
+  write_nifti(in, {64, 64}, head_like(64 * 64));
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
+}
+
+TEST(BadInput, NiftiHeaderOnlyNoData) {
+  TempCase t;
+  const fs::path in = t / "nodata.nii";
+  write_nifti(in, {32, 32, 32}, {});  // header promises 128 KiB of voxels, file ends at 352
+  // KNOWN BUG (see report): read as all zeros without error; the run continues (exit 5).
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
+}
+
+// ---------------------------------------------------------------- usage
+
+TEST(BadInput, InvalidOrientationCode) {
+  TempCase t;
+  const fs::path in = t / "ok.nii";
+  write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
+  expect_refused(run_on(in, t.out(), {"--orientation", "XYZ"}), 2, t.out(), {in.string(), "XYZ"});
+}
+
+TEST(BadInput, OrientationCodeOfWrongLength) {
+  TempCase t;
+  const fs::path in = t / "ok.nii";
+  write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
+  // A usage error about an option value: the line names the offending value.
+  expect_refused(run_on(in, t.out(), {"--orientation", "LP"}), 2, t.out(), {"'LP'"});
+}

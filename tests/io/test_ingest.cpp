@@ -87,3 +87,244 @@ TEST(Ingest, EnhancedMultiFrameEqualsSingleFrameSeries) {
   }
   fs::remove_all(dir);
 }
+
+namespace {
+
+bool has_warning(const io::LoadedScan& s, const std::string& needle) {
+  for (const auto& w : s.info.warnings)
+    if (w.find(needle) != std::string::npos) return true;
+  return false;
+}
+
+}  // namespace
+
+TEST(Ingest, CompressedFilesReallyCarryTheirTransferSyntax) {
+  const fs::path dir = temp_dir("ts");
+  SliceSpec base;
+  base.transfer_syntax = "rle";
+  ms::testing::write_series(dir.string(), base, 8, 0.0, 1.0, field);
+  const auto sc = io::dicom::scan(dir.string());
+  ASSERT_EQ(sc.series.size(), 1u);
+  EXPECT_EQ(sc.series[0].transfer_syntax.substr(0, 22), "1.2.840.10008.1.2.5");  // RLE Lossless
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, GantryTiltIsResampledOntoAnOrthogonalGrid) {
+  const fs::path dir = temp_dir("tilt");
+  SliceSpec base;
+  const double tilt = 15.0 * 3.14159265358979 / 180.0, dz = 1.5;
+  for (int k = 0; k < 14; ++k) {
+    SliceSpec s = base;
+    // Tilted acquisition: each slice shifts along the column direction.
+    s.ipp = Vec3{0, k * dz * std::tan(tilt), k * dz};
+    s.instance = k + 1;
+    for (unsigned j = 0; j < s.rows; ++j)
+      for (unsigned i = 0; i < s.cols; ++i)
+        s.stored.push_back(ms::testing::stored_for(s, field(s.ipp + Vec3{i * s.spacing_i, j * s.spacing_j, 0})));
+    ms::testing::write_slice((dir / ("t" + std::to_string(k) + ".dcm")).string(), s);
+  }
+  const auto s = io::read_scan(dir.string());
+  EXPECT_TRUE(has_warning(s, "tilt of 15.0"));
+  // Orthogonal grid: direction is orthonormal, z spacing is the true slice spacing.
+  EXPECT_NEAR(s.volume.geom.spacing[2], dz, 1e-6);
+  EXPECT_GT(s.volume.geom.size[1], base.rows);  // widened to cover the sheared stack
+  expect_field(s.volume, 0.6, /*skip_air=*/true);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, OneMissingSliceIsInterpolatedWithAWarning) {
+  const fs::path dir = temp_dir("missing1");
+  ms::testing::write_series(dir.string(), SliceSpec{}, 12, 0.0, 1.25, field);
+  fs::remove(dir / "s_005.dcm");
+  const auto s = io::read_scan(dir.string());
+  EXPECT_TRUE(has_warning(s, "missing slice"));
+  EXPECT_EQ(s.volume.geom.size[2], 12u);  // back on the uniform grid
+  expect_field(s.volume, 0.6);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, ExactDuplicateSlicesAreDropped) {
+  const fs::path dir = temp_dir("dups");
+  ms::testing::write_series(dir.string(), SliceSpec{}, 10, 0.0, 1.0, field);
+  fs::copy_file(dir / "s_004.dcm", dir / "copy_of_4.dcm");
+  const auto s = io::read_scan(dir.string());
+  EXPECT_TRUE(has_warning(s, "duplicate"));
+  EXPECT_EQ(s.volume.geom.size[2], 10u);
+  expect_field(s.volume, 0.51);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, SlicesStoredTopDownWithShuffledInstanceNumbersComeOutInPositionOrder) {
+  const fs::path dir = temp_dir("order");
+  SliceSpec base;
+  auto specs = ms::testing::write_series(dir.string(), base, 10, 30.0, -2.0, field);  // descending z
+  // Rewrite with scrambled InstanceNumbers.
+  for (std::size_t k = 0; k < specs.size(); ++k) {
+    specs[k].instance = static_cast<int>((k * 7) % 10) + 1;
+    ms::testing::write_slice((dir / ("x" + std::to_string(k) + ".dcm")).string(), specs[k]);
+  }
+  for (int k = 0; k < 10; ++k) {
+    char n[32];
+    std::snprintf(n, sizeof n, "s_%03d.dcm", k);
+    fs::remove(dir / n);
+  }
+  const auto s = io::read_scan(dir.string());
+  EXPECT_NEAR(s.volume.geom.origin[2], 12.0, 1e-6);  // lowest slice first
+  EXPECT_NEAR(s.volume.geom.direction[8], 1.0, 1e-9);
+  expect_field(s.volume, 0.51);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, RescaleIsAppliedPerSlice) {
+  const fs::path dir = temp_dir("rescale");
+  for (int k = 0; k < 10; ++k) {
+    SliceSpec s;
+    s.ipp = {0, 0, 1.0 * k};
+    s.slope = k % 2 ? 0.5 : 1.0;
+    s.intercept = k % 2 ? -1000.0 : -1024.0;
+    for (unsigned j = 0; j < s.rows; ++j)
+      for (unsigned i = 0; i < s.cols; ++i)
+        s.stored.push_back(ms::testing::stored_for(s, field(s.ipp + Vec3{i * s.spacing_i, j * s.spacing_j, 0})));
+    ms::testing::write_slice((dir / ("r" + std::to_string(k) + ".dcm")).string(), s);
+  }
+  expect_field(io::read_scan(dir.string()).volume, 0.51);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, Monochrome1DoesNotChangeHu) {
+  const fs::path dir = temp_dir("mono1");
+  SliceSpec base;
+  base.photometric = "MONOCHROME1";
+  ms::testing::write_series(dir.string(), base, 9, 0.0, 1.0, field);
+  const auto s = io::read_scan(dir.string());
+  EXPECT_TRUE(has_warning(s, "MONOCHROME1"));
+  expect_field(s.volume, 0.51);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, PaddingAndValuesBelowAirBecomeAir) {
+  const fs::path dir = temp_dir("padding");
+  SliceSpec base;
+  base.signed_pixels = true;
+  base.intercept = 0;
+  base.padding = -2000;
+  auto specs = ms::testing::write_series(dir.string(), base, 9, 0.0, 1.0, [](const Vec3&) { return 40.0; });
+  // Corner pixels carry the padding value, one pixel is -3024 HU (outside the FOV circle).
+  for (std::size_t k = 0; k < specs.size(); ++k) {
+    specs[k].stored[0] = -2000;
+    specs[k].stored[1] = -3024;
+    char n[32];
+    std::snprintf(n, sizeof n, "s_%03zu.dcm", k);
+    ms::testing::write_slice((dir / n).string(), specs[k]);
+  }
+  const auto s = io::read_scan(dir.string());
+  EXPECT_TRUE(has_warning(s, "padding"));
+  EXPECT_FLOAT_EQ(s.volume.hu[0], -1024.0f);
+  EXPECT_FLOAT_EQ(s.volume.hu[1], -1024.0f);
+  EXPECT_FLOAT_EQ(s.volume.hu[2], 40.0f);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, BitsAboveBitsStoredAreIgnoredAndSignedPixelsWork) {
+  const fs::path dir = temp_dir("bits");
+  SliceSpec u;
+  u.bits_stored = 12;
+  auto specs = ms::testing::write_series(dir.string(), u, 9, 0.0, 1.0, field, "u");
+  for (std::size_t k = 0; k < specs.size(); ++k) {
+    for (auto& v : specs[k].stored) v |= 0xB000;  // overlay garbage in the top 4 bits
+    char n[32];
+    std::snprintf(n, sizeof n, "u_%03zu.dcm", k);
+    ms::testing::write_slice((dir / n).string(), specs[k]);
+  }
+  expect_field(io::read_scan(dir.string()).volume, 0.51);
+  fs::remove_all(dir);
+  const fs::path dir2 = temp_dir("signed");
+  SliceSpec sg;
+  sg.signed_pixels = true;
+  sg.intercept = 0;
+  ms::testing::write_series(dir2.string(), sg, 9, -300.0, 1.0, field);  // negative HU stored as negatives
+  expect_field(io::read_scan(dir2.string()).volume, 0.51);
+  fs::remove_all(dir2);
+}
+
+TEST(Ingest, MixedStudyChoosesTheFinestCtCoveringTheHead) {
+  const fs::path dir = temp_dir("mixed");
+  SliceSpec fine, coarse, mr, loc;
+  fine.series_uid = "1.2.3.100";
+  coarse.series_uid = "1.2.3.200";
+  coarse.spacing_i = coarse.spacing_j = 1.8;
+  mr.series_uid = "1.2.3.300";
+  mr.modality = "MR";
+  mr.sop_class = "1.2.840.10008.5.1.4.1.1.4";
+  loc.series_uid = "1.2.3.400";
+  loc.image_type = "ORIGINAL\\PRIMARY\\LOCALIZER";
+  ms::testing::write_series((dir / "a").string(), coarse, 10, 0.0, 3.0, field, "coarse");
+  ms::testing::write_series((dir / "b" / "c").string(), fine, 28, 0.0, 1.0, field, "fine");
+  ms::testing::write_series((dir / "a").string(), mr, 30, 0.0, 1.0, field, "mr");
+  ms::testing::write_series(dir.string(), loc, 12, 0.0, 2.5, field, "loc");
+  std::ofstream(dir / "README.txt") << "not DICOM";
+  const auto sc = io::dicom::scan(dir.string());
+  EXPECT_EQ(sc.series.size(), 4u);
+  EXPECT_EQ(sc.files_seen, 81u);
+  EXPECT_EQ(sc.dicom_files, 80u);
+  const auto s = io::read_scan(dir.string());
+  EXPECT_EQ(s.info.series_uid, "1.2.3.100");
+  EXPECT_EQ(s.volume.geom.size[2], 28u);
+  // --series overrides the rule.
+  io::ReadOptions ro;
+  ro.series_uid = "1.2.3.200";
+  EXPECT_NEAR(io::read_scan(dir.string(), ro).volume.geom.spacing[0], 1.8, 1e-9);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, OneUidWithTwoOrientationsIsSplitIntoStacks) {
+  const fs::path dir = temp_dir("stacks");
+  SliceSpec axial, coronal;
+  coronal.row_dir = {1, 0, 0};
+  coronal.col_dir = {0, 0, -1};
+  ms::testing::write_series(dir.string(), axial, 20, 0.0, 1.0, field, "ax");
+  ms::testing::write_series(dir.string(), coronal, 9, 0.0, 2.0, field, "cor");
+  const auto sc = io::dicom::scan(dir.string());
+  ASSERT_EQ(sc.series.size(), 2u);
+  EXPECT_NE(sc.series[0].label.find('#'), std::string::npos);
+  const auto s = io::read_scan(dir.string());
+  EXPECT_EQ(s.volume.geom.size[2], 20u);
+  EXPECT_NEAR(s.volume.geom.direction[8], 1.0, 1e-9);
+  expect_field(s.volume, 0.51);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, VolumeFilesHonourOrientationOverride) {
+  const fs::path dir = temp_dir("orient");
+  ms::testing::write_series(dir.string(), SliceSpec{}, 9, 0.0, 1.0, field);
+  const auto dcm = io::read_scan(dir.string());
+  Mask m;
+  m.geom = dcm.volume.geom;
+  m.data.assign(m.geom.voxel_count(), 1);
+  io::write_mask(m, (dir / "v.nii.gz").string());
+  io::ReadOptions ro;
+  ro.orientation = "LAI";
+  const auto v = io::read_scan((dir / "v.nii.gz").string(), ro);
+  EXPECT_NEAR(v.volume.geom.direction[0], 1, 1e-12);   // i -> L
+  EXPECT_NEAR(v.volume.geom.direction[4], -1, 1e-12);  // j -> A
+  EXPECT_NEAR(v.volume.geom.direction[8], -1, 1e-12);  // k -> I
+  ro.orientation = "LLS";
+  EXPECT_THROW(io::read_scan((dir / "v.nii.gz").string(), ro), Error);
+  fs::remove_all(dir);
+}
+
+TEST(Ingest, HeadsqNrrdFromSharedDataLoads) {
+  const std::string path = std::string(MANDISYM_SHARED_DATA) + "/headsq/quarter.nhdr";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data not present";
+  io::ReadOptions ro;
+  ro.hu_offset = -1024;
+  const auto s = io::read_scan(path, ro);
+  EXPECT_EQ(s.volume.geom.size[0], 64u);
+  EXPECT_EQ(s.volume.geom.size[2], 93u);
+  EXPECT_NEAR(s.volume.geom.spacing[0], 3.2, 1e-6);
+  EXPECT_NEAR(s.volume.geom.spacing[2], 1.5, 1e-6);
+  EXPECT_TRUE(has_warning(s, "not anatomical"));
+  float mn = 1e9f;
+  for (float v : s.volume.hu) mn = std::min(mn, v);
+  EXPECT_LT(mn, -900.0f);  // air after the offset
+}
