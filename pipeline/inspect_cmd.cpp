@@ -1,4 +1,6 @@
 // `mandisym inspect`: what is in a folder (or file), and what `run` would use.
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -21,7 +23,9 @@ const cli::CommandSpec& inspect_spec() {
       "matrix, pixel spacing, slice spacing along the normal, orientation, gantry tilt, extent, and whether it is "
       "usable (with the reason when not). Patient name and ID are never read. For a volume file, prints its grid.",
       {{"PATH", "DICOM folder (searched recursively), DICOM file, or volume file"}},
-      {{"json", "", "print JSON instead of a table", ""}, {"help", "", "show this help", ""}}};
+      {{"json", "", "print JSON instead of a table", ""},
+       {"load", "", "also load the chosen series as run would (decode, rescale, resample) and report time and HU range", ""},
+       {"help", "", "show this help", ""}}};
   return s;
 }
 
@@ -129,6 +133,17 @@ int inspect_command(const cli::Args& a) {
     for (const auto& w : L.warnings) std::printf("       note: %s\n", w.c_str());
   }
   std::printf("%s %s\n", chosen >= 0 ? "run would use:" : "run would refuse:", why.c_str());
+  if (chosen >= 0 && a.has("load")) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const io::LoadedScan s = io::read_scan(path);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const Geometry& g = s.volume.geom;
+    float mn = 1e30f, mx = -1e30f;
+    for (float v : s.volume.hu) mn = std::min(mn, v), mx = std::max(mx, v);
+    std::printf("loaded: %zu x %zu x %zu voxels, spacing %.3f x %.3f x %.3f mm, HU %.0f..%.0f, %.2f s\n", g.size[0], g.size[1],
+                g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], mn, mx, secs);
+    for (const auto& w : s.info.warnings) std::printf("  warning: %s\n", w.c_str());
+  }
   return chosen >= 0 ? 0 : static_cast<int>(ExitCode::InputInvalid);
 }
 

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
+#include <limits>
 #include <mutex>
 #include <cstring>
 #include <fstream>
@@ -89,9 +90,16 @@ std::string volume_kind(const std::string& path) {
 void finish(LoadedScan& scan, double hu_offset) {
   auto& hu = scan.volume.hu;
   std::size_t bad = 0;
-  for (float& v : hu) {
+  float mn = std::numeric_limits<float>::max(), mx = std::numeric_limits<float>::lowest();
+  const long n = static_cast<long>(hu.size());
+  const float off = static_cast<float>(hu_offset);
+#pragma omp parallel for schedule(static) reduction(+ : bad) reduction(min : mn) reduction(max : mx)
+  for (long i = 0; i < n; ++i) {
+    float& v = hu[static_cast<std::size_t>(i)];
     if (!std::isfinite(v)) ++bad;
-    v = static_cast<float>(v + hu_offset);
+    v += off;
+    mn = std::min(mn, v);
+    mx = std::max(mx, v);
   }
   if (bad)
     throw Error(ExitCode::InputInvalid,
@@ -105,12 +113,23 @@ void finish(LoadedScan& scan, double hu_offset) {
     if (!(g.spacing[a] > 0) || !std::isfinite(g.spacing[a]))
       throw Error(ExitCode::InputInvalid, scan.info.path + ": voxel spacing is not positive");
   }
-  scan.info.pixel_sha256 = sha256_hex(hu.data(), hu.size() * sizeof(float));
+  // Provenance hash: SHA-256 over the per-slice SHA-256 digests (hex) of the
+  // float32 HU slices, x fastest; slices hash in parallel (docs/ingest.md).
+  {
+    const std::size_t plane = g.size[0] * g.size[1];
+    const long nz = static_cast<long>(g.size[2]);
+    std::vector<std::string> digests(static_cast<std::size_t>(nz));
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < nz; ++k)
+      digests[static_cast<std::size_t>(k)] = sha256_hex(hu.data() + static_cast<std::size_t>(k) * plane, plane * sizeof(float));
+    Sha256 top;
+    for (const auto& d : digests) top.update(d.data(), d.size());
+    scan.info.pixel_sha256 = top.hex_digest();
+  }
   // A CT in HU has air near -1000 and nothing far below it.
-  const auto [mn, mx] = std::minmax_element(hu.begin(), hu.end());
-  if (*mn > -500 || *mn < -3100)
-    scan.info.warnings.push_back("value range [" + std::to_string(static_cast<int>(*mn)) + ", " +
-                                 std::to_string(static_cast<int>(*mx)) +
+  if (mn > -500 || mn < -3100)
+    scan.info.warnings.push_back("value range [" + std::to_string(static_cast<int>(mn)) + ", " +
+                                 std::to_string(static_cast<int>(mx)) +
                                  "] does not look like CT in HU (air should be near -1000); check --hu-offset");
 }
 
