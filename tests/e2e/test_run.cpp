@@ -191,3 +191,51 @@ TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
   EXPECT_EQ(n, 55u);  // 110 mm / 2 mm slices
   fs::remove_all(out);
 }
+
+TEST(EndToEnd, HeadsqNrrdFromTheIssueCompletes) {
+  const fs::path nhdr = fs::path(MANDISYM_SHARED_DATA) / "headsq" / "quarter.nhdr";
+  if (!fs::exists(nhdr)) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("headsq");
+  std::string err;
+  ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 -o " + out.string() + " -q", &err), 0) << err;
+  const Value r = load(out / "results.json");
+  EXPECT_EQ(r.at("input").at("kind").as_string(), "nrrd");
+  EXPECT_EQ(r.at("input").at("size_voxels")[2].as_number(), 93);
+  // The file carries no anatomical orientation: the run must say so.
+  bool warned = false;
+  for (std::size_t i = 0; i < r.at("warnings").size(); ++i)
+    warned |= r.at("warnings")[i].as_string().find("not anatomical") != std::string::npos;
+  EXPECT_TRUE(warned);
+  fs::remove_all(out);
+}
+
+TEST(EndToEnd, PatientIdentityNeverReachesTheOutputs) {
+  // A phantom series written with a recognisable name and ID.
+  const fs::path ph = temp_dir("privacy_ph"), out = temp_dir("privacy_out");
+  ASSERT_EQ(run("phantom -o " + ph.string() + " --spacing 1 --fov 140,120,120 --occlusal-gap 3 --joint-space 3 --no-preview"), 0);
+  // Re-stamp the identity into every slice header (same length, so offsets stay valid).
+  for (const auto& e : fs::directory_iterator(ph / "dicom")) {
+    std::fstream f(e.path(), std::ios::in | std::ios::out | std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    std::string bytes = s.str();
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"ANONYMOUS^PHANTOM", "ZZSECRET^PERSON__"},
+                                   std::pair<std::string, std::string>{"PHANTOM", "ZZSECID"}}) {
+      for (std::size_t p = bytes.find(from); p != std::string::npos; p = bytes.find(from, p + 1)) bytes.replace(p, to.size(), to);
+    }
+    f.seekp(0);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  std::string err;
+  ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string(), &err), 0) << err;
+  for (const auto& e : fs::recursive_directory_iterator(out)) {
+    if (!e.is_regular_file()) continue;
+    std::ifstream f(e.path(), std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    EXPECT_EQ(s.str().find("ZZSECRET"), std::string::npos) << e.path();
+    EXPECT_EQ(s.str().find("ZZSECID"), std::string::npos) << e.path();
+  }
+  fs::remove_all(ph);
+  fs::remove_all(out);
+}
