@@ -40,6 +40,8 @@ const cli::CommandSpec& run_spec() {
        {"series", "UID", "series to use when the folder holds several (see mandisym inspect)", "finest CT series covering the scan"},
        {"orientation", "CODE", "volume files: where the i, j, k axes point, e.g. LPS or LAI (for files without orientation)", "from the file"},
        {"bone-threshold", "HU", "bone threshold for segmentation", "250"},
+       {"mask", "FILE", "use this segmentation instead of the automatic one (label map in any ITK format)", ""},
+       {"label", "N", "with --mask: the mandible's label (TotalSegmentator craniofacial_structures: 1)", "the only label"},
        {"target-faces", "N", "decimate the surface above this many triangles", "60000"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
        {"no-figures", "", "do not write QC figures", ""},
@@ -110,7 +112,14 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   try {
     // 2. segmentation
     so.bone_threshold_hu = args.number("bone-threshold", so.bone_threshold_hu);
-    seg = segmentation::segment_mandible(scan.volume, so);
+    if (args.has("mask")) {
+      const double label = args.number("label", -1);
+      seg = segmentation::from_label_map(scan.volume.geom, io::read_label_map(args.get("mask")), static_cast<int>(label),
+                                         args.get("mask"));
+    } else {
+      if (args.has("label")) throw Error(ExitCode::Usage, "--label needs --mask");
+      seg = segmentation::segment_mandible(scan.volume, so);
+    }
     S.segmentation_method = seg.method;
     S.seg_voxels = seg.voxels;
     S.seg_volume_mm3 = seg.volume_mm3;

@@ -48,6 +48,12 @@ struct Mask {
   std::size_t count() const;
 };
 
+// Integer label map (e.g. an external segmentation) on a grid.
+struct LabelMap {
+  Geometry geom;
+  std::vector<std::int32_t> labels;
+};
+
 // Triangle mesh in LPS mm. Closed, 2-manifold, outward-oriented when it comes
 // out of the surface stage (METHOD.md §0).
 struct Mesh {

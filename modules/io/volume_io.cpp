@@ -391,6 +391,21 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   return scan;
 }
 
+void write_volume(const Volume& volume, const std::string& path) {
+  register_factories();
+  auto img = make_image<FloatImage>(volume.geom);
+  std::copy(volume.hu.begin(), volume.hu.end(), img->GetBufferPointer());
+  auto writer = itk::ImageFileWriter<FloatImage>::New();
+  writer->SetInput(img);
+  writer->SetFileName(path);
+  writer->UseCompressionOn();
+  try {
+    writer->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(ExitCode::OutputFailed, path + ": cannot write volume: " + first_line(e.GetDescription()));
+  }
+}
+
 void write_mask(const Mask& mask, const std::string& path) {
   register_factories();
   auto img = make_image<MaskImage>(mask.geom);
@@ -420,6 +435,27 @@ Mask read_mask(const std::string& path) {
   const auto* buf = reader->GetOutput()->GetBufferPointer();
   m.data.resize(m.geom.voxel_count());
   for (std::size_t i = 0; i < m.data.size(); ++i) m.data[i] = buf[i] != 0;
+  return m;
+}
+
+LabelMap read_label_map(const std::string& path) {
+  register_factories();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file");
+  if (::access(path.c_str(), R_OK) != 0) throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
+  if (volume_kind(path) == "nifti") check_nifti_payload(path);
+  auto reader = itk::ImageFileReader<FloatImage>::New();
+  reader->SetFileName(path);
+  try {
+    reader->Update();
+  } catch (const itk::ExceptionObject& e) {
+    throw Error(ExitCode::InputInvalid, path + ": cannot read label map: " + first_line(e.GetDescription()));
+  }
+  LabelMap m;
+  m.geom = geometry_of(reader->GetOutput());
+  const float* buf = reader->GetOutput()->GetBufferPointer();
+  m.labels.resize(m.geom.voxel_count());
+  for (std::size_t i = 0; i < m.labels.size(); ++i) m.labels[i] = static_cast<std::int32_t>(std::lround(buf[i]));
   return m;
 }
 

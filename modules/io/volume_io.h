@@ -33,10 +33,15 @@ struct LoadedScan {
 // with a one-line message naming the path.
 LoadedScan read_scan(const std::string& path, const ReadOptions& options = {});
 
+// Writes a float32 HU volume (NIfTI, NRRD or MetaImage by extension).
+void write_volume(const Volume& volume, const std::string& path);
+
 // Writes a uint8 mask as NIfTI (.nii or .nii.gz) on its own grid.
 void write_mask(const Mask& mask, const std::string& path);
 // Reads a mask (any ITK-readable format); voxels != 0 become 1.
 Mask read_mask(const std::string& path);
+// Reads an integer label map (any ITK-readable format, values rounded).
+LabelMap read_label_map(const std::string& path);
 
 // Identity written into every slice of a generated series.
 struct DicomSeriesSpec {

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <set>
 
 #include "core/error.h"
 #include "io/itk_geometry.h"
@@ -130,6 +131,79 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
         }
         if (!edge && j != 0 && j + 1 != g.size[1] && k != 0 && k + 1 != g.size[2]) i = g.size[0] - 2;
       }
+  if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
+  return r;
+}
+
+namespace {
+
+// Truncation: mask voxels on any face of the grid.
+bool touches_border(const Mask& m) {
+  const Geometry& g = m.geom;
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j) {
+      const bool face_kj = k == 0 || j == 0 || k + 1 == g.size[2] || j + 1 == g.size[1];
+      for (std::size_t i = 0; i < g.size[0]; i += face_kj ? 1 : g.size[0] - 1) {
+        if (m.data[g.linear(i, j, k)]) return true;
+        if (g.size[0] == 1) break;
+      }
+    }
+  return false;
+}
+
+}  // namespace
+
+Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const std::string& source) {
+  std::set<std::int32_t> present;
+  for (auto v : lm.labels)
+    if (v != 0) present.insert(v);
+  if (present.empty()) throw Error(ExitCode::NoMandible, source + ": the label map is empty");
+  if (label < 0 && present.size() > 1) {
+    std::string list;
+    for (auto v : present) list += (list.empty() ? "" : ", ") + std::to_string(v);
+    throw Error(ExitCode::Usage, source + ": holds labels " + list + "; pass --label N (TotalSegmentator mandible = 1)");
+  }
+  const std::int32_t want = label < 0 ? *present.begin() : label;
+  if (!present.count(want)) throw Error(ExitCode::NoMandible, source + ": label " + std::to_string(want) + " is not in the map");
+  Result r;
+  r.method = "external";
+  r.mask.geom = ct;
+  r.mask.data.assign(ct.voxel_count(), 0);
+  const bool same = lm.geom.same_grid(ct, 1e-3);
+  std::size_t inside = 0;
+  for (std::size_t k = 0; k < ct.size[2]; ++k)
+    for (std::size_t j = 0; j < ct.size[1]; ++j)
+      for (std::size_t i = 0; i < ct.size[0]; ++i) {
+        const std::size_t idx = ct.linear(i, j, k);
+        std::int32_t v;
+        if (same) {
+          v = lm.labels[idx];
+          ++inside;
+        } else {
+          const Vec3 c = lm.geom.lps_to_index(ct.index_to_lps(i, j, k));
+          const long a = std::lround(c[0]), b = std::lround(c[1]), d = std::lround(c[2]);
+          if (a < 0 || b < 0 || d < 0 || a >= long(lm.geom.size[0]) || b >= long(lm.geom.size[1]) || d >= long(lm.geom.size[2]))
+            continue;
+          ++inside;
+          v = lm.labels[lm.geom.linear(a, b, d)];
+        }
+        r.mask.data[idx] = v == want;
+      }
+  if (inside == 0) throw Error(ExitCode::InputInvalid, source + ": the label map does not overlap the CT");
+  r.voxels = r.mask.count();
+  if (r.voxels == 0) throw Error(ExitCode::NoMandible, source + ": label " + std::to_string(want) + " is empty on the CT grid");
+  r.volume_mm3 = r.voxels * ct.voxel_volume_mm3();
+  if (!same) r.warnings.push_back(source + " was resampled to the CT grid (nearest neighbour)");
+  // Components (6-connected) of the selected label.
+  auto img = io::make_image<MaskImage>(ct);
+  std::copy(r.mask.data.begin(), r.mask.data.end(), img->GetBufferPointer());
+  auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
+  cc->SetInput(img);
+  cc->Update();
+  if (cc->GetObjectCount() > 1)
+    r.warnings.push_back(source + ": the mandible label has " + std::to_string(cc->GetObjectCount()) +
+                         " separate parts (kept all; fracture or segmentation gaps?)");
+  r.truncated = touches_border(r.mask);
   if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
   return r;
 }

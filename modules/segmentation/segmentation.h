@@ -27,4 +27,12 @@ struct Result {
 // Throws ms::Error(NoMandible) when no component qualifies.
 Result segment_mandible(const Volume& ct, const Options& options = {});
 
+// Mandible from an external label map (e.g. TotalSegmentator
+// craniofacial_structures, mandible = 1): voxels equal to label (label < 0:
+// any non-zero label, allowed only when the map holds a single label),
+// resampled to the CT grid by nearest neighbour in LPS space. Throws
+// ms::Error naming source: Usage (several labels and no label given),
+// InputInvalid (no overlap with the CT), NoMandible (label empty on the CT).
+Result from_label_map(const Geometry& ct_grid, const LabelMap& labels, int label, const std::string& source);
+
 }  // namespace ms::segmentation
