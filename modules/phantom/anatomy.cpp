@@ -293,8 +293,13 @@ double Anatomy::teeth(const std::vector<Tooth>& set, const Vec3& p, bool crown_o
     const double zc = t.dir * d[2];  // distance into the tooth from the occlusal end
     const double rr = std::min(t.half_md, t.half_bl);
     const double ell = (std::sqrt(a * a / (t.half_md * t.half_md) + b * b / (t.half_bl * t.half_bl)) - 1.0) * rr;
-    const double r = 1.4;
-    const double crown = sdf::extrude(ell + r, std::abs(zc - t.crown_h / 2) - t.crown_h / 2 + r) - r;
+    // Crown: a rounded elliptic cylinder ending in a domed occlusal cap
+    // (cusps make point contacts in occlusion, never full-area contact).
+    const double r = 1.4, cap = 2.5;
+    const double body_h = t.crown_h - cap;
+    const double cyl = sdf::extrude(ell + r, std::abs(zc - cap - body_h / 2) - body_h / 2 + r) - r;
+    const double dome = sdf::ellipsoid(Vec3{a, b, zc - cap}, Vec3{t.half_md, t.half_bl, cap});
+    const double crown = sdf::smin(cyl, dome, 0.8);
     double dd = crown;
     if (!crown_only) {
       const Vec3 top = t.base - (t.dir * (t.crown_h - 1.0)) * Vec3{0, 0, -1};

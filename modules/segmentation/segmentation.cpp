@@ -6,11 +6,16 @@
 #include <itkBinaryMorphologicalClosingImageFilter.h>
 #include <itkConnectedComponentImageFilter.h>
 #include <itkImage.h>
+#include <itkMorphologicalWatershedFromMarkersImageFilter.h>
+#include <itkRegionOfInterestImageFilter.h>
 #include <itkRelabelComponentImageFilter.h>
+#include <itkSignedMaurerDistanceMapImageFilter.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <cstdio>
+#include <cstdlib>
 #include <set>
 
 #include "core/error.h"
@@ -30,111 +35,6 @@ struct Component {
 
 }  // namespace
 
-Result segment_mandible(const Volume& ct, const Options& opt) {
-  const Geometry& g = ct.geom;
-  auto bone = io::make_image<MaskImage>(g);
-  {
-    auto* b = bone->GetBufferPointer();
-    for (std::size_t i = 0; i < ct.hu.size(); ++i) b[i] = ct.hu[i] >= opt.bone_threshold_hu;
-  }
-  auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-  cc->SetInput(bone);
-  cc->FullyConnectedOff();
-  auto relabel = itk::RelabelComponentImageFilter<LabelImage, LabelImage>::New();
-  relabel->SetInput(cc->GetOutput());
-  relabel->SetMinimumObjectSize(
-      static_cast<itk::SizeValueType>(opt.min_component_cm3 * 1000.0 / g.voxel_volume_mm3()));
-  relabel->Update();
-  const auto* labels = relabel->GetOutput()->GetBufferPointer();
-  const unsigned n_labels = static_cast<unsigned>(relabel->GetNumberOfObjects());
-  if (n_labels == 0)
-    throw Error(ExitCode::NoMandible, "no mandible found: no bone (no connected region above " +
-                                          std::to_string(static_cast<int>(opt.bone_threshold_hu)) + " HU of at least " +
-                                          std::to_string(static_cast<int>(std::lround(opt.min_component_cm3))) + " cm3)");
-
-  std::vector<Component> comps(n_labels + 1);
-  for (std::size_t k = 0; k < g.size[2]; ++k)
-    for (std::size_t j = 0; j < g.size[1]; ++j)
-      for (std::size_t i = 0; i < g.size[0]; ++i) {
-        const unsigned l = labels[g.linear(i, j, k)];
-        if (!l) continue;
-        const Vec3 p = g.index_to_lps(i, j, k);
-        Component& c = comps[l];
-        c.label = l;
-        ++c.voxels;
-        for (int a = 0; a < 3; ++a) {
-          c.lo[a] = std::min(c.lo[a], p[a]);
-          c.hi[a] = std::max(c.hi[a], p[a]);
-        }
-      }
-  // The mandible is the lowest of the wide bones: among components at least
-  // 40 mm wide left-right (skull, maxilla, mandible; not the spine or hyoid),
-  // the one whose centroid is most inferior along the scan's superior axis.
-  // Thin rule: when the teeth or condyles touch, mandible and skull form one
-  // component and this picks both (issue C separates them).
-  std::vector<double> zsum(n_labels + 1, 0.0);
-  for (std::size_t k = 0; k < g.size[2]; ++k)
-    for (std::size_t j = 0; j < g.size[1]; ++j)
-      for (std::size_t i = 0; i < g.size[0]; ++i)
-        if (const unsigned l = labels[g.linear(i, j, k)]) zsum[l] += g.index_to_lps(i, j, k)[2];
-  unsigned best = 0;
-  double best_z = 1e30;
-  for (unsigned l = 1; l <= n_labels; ++l) {
-    const Component& c = comps[l];
-    if (c.voxels == 0 || c.hi[0] - c.lo[0] < 40.0) continue;
-    const double zc = zsum[l] / c.voxels;
-    if (zc < best_z) {
-      best_z = zc;
-      best = l;
-    }
-  }
-  if (best == 0)
-    throw Error(ExitCode::NoMandible, "no mandible found: no bone component is at least 40 mm wide left-right");
-
-  auto comp = io::make_image<MaskImage>(g);
-  {
-    auto* m = comp->GetBufferPointer();
-    for (std::size_t i = 0; i < ct.hu.size(); ++i) m[i] = labels[i] == best;
-  }
-  // Close small cortical gaps, then fill the cancellous interior.
-  using SE = itk::BinaryBallStructuringElement<unsigned char, 3>;
-  SE se;
-  SE::SizeType radius;
-  for (int a = 0; a < 3; ++a) radius[a] = g.spacing[a] < 0.7 ? 2 : 1;
-  se.SetRadius(radius);
-  se.CreateStructuringElement();
-  auto close = itk::BinaryMorphologicalClosingImageFilter<MaskImage, MaskImage, SE>::New();
-  close->SetInput(comp);
-  close->SetKernel(se);
-  close->SetForegroundValue(1);
-  auto fill = itk::BinaryFillholeImageFilter<MaskImage>::New();
-  fill->SetInput(close->GetOutput());
-  fill->SetForegroundValue(1);
-  fill->FullyConnectedOn();
-  fill->Update();
-
-  Result r;
-  r.method = "auto";
-  r.mask.geom = g;
-  const auto* out = fill->GetOutput()->GetBufferPointer();
-  r.mask.data.assign(out, out + g.voxel_count());
-  r.voxels = r.mask.count();
-  r.volume_mm3 = r.voxels * g.voxel_volume_mm3();
-  // Truncation: mandible voxels on any face of the scan.
-  for (std::size_t k = 0; k < g.size[2] && !r.truncated; ++k)
-    for (std::size_t j = 0; j < g.size[1] && !r.truncated; ++j)
-      for (std::size_t i = 0; i < g.size[0]; ++i) {
-        const bool edge = i == 0 || j == 0 || k == 0 || i + 1 == g.size[0] || j + 1 == g.size[1] || k + 1 == g.size[2];
-        if (edge && r.mask.data[g.linear(i, j, k)]) {
-          r.truncated = true;
-          break;
-        }
-        if (!edge && j != 0 && j + 1 != g.size[1] && k != 0 && k + 1 != g.size[2]) i = g.size[0] - 2;
-      }
-  if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
-  return r;
-}
-
 namespace {
 
 // Truncation: mask voxels on any face of the grid.
@@ -152,6 +52,299 @@ bool touches_border(const Mask& m) {
 }
 
 }  // namespace
+
+namespace {
+
+using FloatImage = itk::Image<float, 3>;
+
+// Calibration offset: the soft-tissue peak of the histogram (expected near
+// 40 HU) within [-60, 160] HU. Returns 0 when there is no usable peak.
+double estimate_offset(const Volume& ct, std::size_t* soft_voxels) {
+  constexpr int lo = -60, hi = 160, bw = 4;
+  std::vector<double> h((hi - lo) / bw + 1, 0.0);
+  std::size_t n = 0;
+  for (float v : ct.hu)
+    if (v >= lo && v <= hi) {
+      h[static_cast<std::size_t>((v - lo) / bw)] += 1;
+      ++n;
+    }
+  *soft_voxels = n;
+  if (n < 1000) return 0.0;
+  std::vector<double> sm(h.size(), 0.0);  // 3-bin smoothing
+  for (std::size_t i = 0; i < h.size(); ++i)
+    for (int d = -2; d <= 2; ++d) {
+      const long j = static_cast<long>(i) + d;
+      if (j >= 0 && j < static_cast<long>(h.size())) sm[i] += h[static_cast<std::size_t>(j)];
+    }
+  const std::size_t peak = static_cast<std::size_t>(std::max_element(sm.begin(), sm.end()) - sm.begin());
+  if (peak == 0 || peak + 1 == sm.size()) return 0.0;  // no interior peak: leave calibration alone
+  return lo + (peak + 0.5) * bw - 40.0;
+}
+
+struct Features {
+  std::size_t voxels = 0;
+  Vec3 lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30}, sum{0, 0, 0};
+  Vec3 centroid() const { return (1.0 / static_cast<double>(voxels)) * sum; }
+  double extent(int a) const { return hi[a] - lo[a]; }
+};
+
+std::vector<Features> component_features(const LabelImage* labels, unsigned n, const Geometry& g) {
+  std::vector<Features> f(n + 1);
+  const auto* buf = labels->GetBufferPointer();
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        const unsigned l = buf[g.linear(i, j, k)];
+        if (!l) continue;
+        const Vec3 p = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+        Features& c = f[l];
+        ++c.voxels;
+        c.sum = c.sum + p;
+        for (int a = 0; a < 3; ++a) {
+          c.lo[a] = std::min(c.lo[a], p[a]);
+          c.hi[a] = std::max(c.hi[a], p[a]);
+        }
+      }
+  return f;
+}
+
+// The mandible among bone components: wide (left-right), deep
+// (antero-posterior) and tall enough to hold body, rami and condyles, not
+// larger than a mandible can be; the lowest such (the skull and maxilla lie above it;
+// clavicles are neither deep nor tall; spine and hyoid are narrow or small).
+unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double shrink_mm) {
+  unsigned best = 0;
+  double best_z = 1e30;
+  for (unsigned l = 1; l < f.size(); ++l) {
+    const Features& c = f[l];
+    if (c.voxels == 0) continue;
+    const double vol_cm3 = c.voxels * voxel_mm3 / 1000.0;
+    const double w = c.extent(0) + 2 * shrink_mm, d = c.extent(1) + 2 * shrink_mm, h = c.extent(2) + 2 * shrink_mm;
+    if (w < 55 || w > 170 || d < 45 || d > 170 || h < 35 || h > 160 || vol_cm3 < 2.0) continue;
+    if (c.centroid()[2] < best_z) {
+      best_z = c.centroid()[2];
+      best = l;
+    }
+  }
+  return best;
+}
+
+template <class ImageT>
+typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionType& region) {
+  auto roi = itk::RegionOfInterestImageFilter<ImageT, ImageT>::New();
+  roi->SetInput(img);
+  roi->SetRegionOfInterest(region);
+  roi->Update();
+  return roi->GetOutput();
+}
+
+}  // namespace
+
+Result segment_mandible(const Volume& ct, const Options& opt) {
+  const Geometry& g = ct.geom;
+  Result r;
+  r.method = "auto";
+  std::size_t soft = 0;
+  const double offset = estimate_offset(ct, &soft);
+  if (std::abs(offset) > 50)
+    r.warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(40 + offset))) +
+                         " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
+                         " HU (calibration offset?)");
+  const double threshold = opt.bone_threshold_hu + offset;
+
+  // Bone mask and its bounding box (work is done on the crop).
+  auto full = io::make_image<MaskImage>(g);
+  std::array<long, 3> lo{long(g.size[0]), long(g.size[1]), long(g.size[2])}, hi{-1, -1, -1};
+  {
+    auto* b = full->GetBufferPointer();
+    for (std::size_t k = 0; k < g.size[2]; ++k)
+      for (std::size_t j = 0; j < g.size[1]; ++j)
+        for (std::size_t i = 0; i < g.size[0]; ++i) {
+          const std::size_t idx = g.linear(i, j, k);
+          if (ct.hu[idx] < threshold) continue;
+          b[idx] = 1;
+          const long v[3] = {long(i), long(j), long(k)};
+          for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], v[a]), hi[a] = std::max(hi[a], v[a]);
+        }
+  }
+  if (hi[0] < 0) throw Error(ExitCode::NoMandible, "no mandible found: no voxel reaches the bone threshold (" +
+                                                        std::to_string(static_cast<int>(threshold)) + " HU)");
+  MaskImage::RegionType region;
+  for (int a = 0; a < 3; ++a) {
+    const long l = std::max(0L, lo[a] - 2), h = std::min(long(g.size[a]) - 1, hi[a] + 2);
+    region.SetIndex(a, l);
+    region.SetSize(a, static_cast<itk::SizeValueType>(h - l + 1));
+  }
+  MaskImage::Pointer bone = crop<MaskImage>(full.GetPointer(), region);
+  full = nullptr;
+  {
+    auto fill = itk::BinaryFillholeImageFilter<MaskImage>::New();
+    fill->SetInput(bone);
+    fill->SetForegroundValue(1);
+    fill->FullyConnectedOn();
+    fill->Update();
+    bone = fill->GetOutput();
+    bone->DisconnectPipeline();
+  }
+  const Geometry cg = io::geometry_of(bone.GetPointer());
+  const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+  const double voxel_mm3 = g.voxel_volume_mm3();
+
+  // Distance to the bone surface (mm, positive inside).
+  auto dmap = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
+  dmap->SetInput(bone);
+  dmap->SetInsideIsPositive(true);
+  dmap->SetSquaredDistance(false);
+  dmap->SetUseImageSpacing(true);
+  dmap->SetBackgroundValue(0);
+  dmap->Update();
+  FloatImage::Pointer dist = dmap->GetOutput();
+
+  // Markers: cores deeper than r. Thin contacts (cusp contacts, bridged joint
+  // spaces, streak rays) have no core, so the cores separate.
+  const double rsep = std::max(1.0, 0.75 * max_spacing);
+  auto core = io::make_image<MaskImage>(cg);
+  {
+    const float* d = dist->GetBufferPointer();
+    auto* c = core->GetBufferPointer();
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = d[i] > rsep;
+  }
+  auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
+  cc->SetInput(core);
+  cc->FullyConnectedOff();
+  auto relabel = itk::RelabelComponentImageFilter<LabelImage, LabelImage>::New();
+  relabel->SetInput(cc->GetOutput());
+  relabel->SetMinimumObjectSize(static_cast<itk::SizeValueType>(std::max(8.0, 100.0 / voxel_mm3)));
+  relabel->Update();
+  LabelImage::Pointer markers = relabel->GetOutput();
+  const unsigned n_markers = static_cast<unsigned>(relabel->GetNumberOfObjects());
+  const auto feats = component_features(markers.GetPointer(), n_markers, cg);
+  const unsigned mand = pick_mandible(feats, voxel_mm3, rsep);
+  if (std::getenv("MANDISYM_DEBUG_SEG"))
+    for (unsigned l = 1; l <= n_markers; ++l)
+      std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f%s\n", l, feats[l].voxels * voxel_mm3 / 1000, feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], l == mand ? "  <- mandible" : "");
+
+  std::vector<std::uint8_t> crop_mask(cg.voxel_count(), 0);
+  if (mand == 0) {
+    r.warnings.push_back("mandible not separated from the other bones: no bone core has a mandible's size; "
+                         "the result may include skull or spine");
+    // Fall back to the widest, lowest bone component of the undivided mask.
+    auto cc2 = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
+    cc2->SetInput(bone);
+    auto rl2 = itk::RelabelComponentImageFilter<LabelImage, LabelImage>::New();
+    rl2->SetInput(cc2->GetOutput());
+    rl2->SetMinimumObjectSize(static_cast<itk::SizeValueType>(opt.min_component_cm3 * 1000.0 / voxel_mm3));
+    rl2->Update();
+    const unsigned n2 = static_cast<unsigned>(rl2->GetNumberOfObjects());
+    if (n2 == 0)
+      throw Error(ExitCode::NoMandible, "no mandible found: no bone (no connected region above " +
+                                            std::to_string(static_cast<int>(threshold)) + " HU of at least " +
+                                            std::to_string(static_cast<int>(std::lround(opt.min_component_cm3))) + " cm3)");
+    const auto f2 = component_features(rl2->GetOutput(), n2, cg);
+    unsigned best = 0;
+    for (unsigned l = 1; l <= n2; ++l)
+      if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
+    if (best == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone is at least 40 mm wide left-right");
+    const auto* lab = rl2->GetOutput()->GetBufferPointer();
+    for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
+  } else {
+    // Watershed from all markers on -distance: boundaries settle on the necks.
+    auto landscape = FloatImage::New();
+    landscape->CopyInformation(dist);
+    landscape->SetRegions(dist->GetLargestPossibleRegion());
+    landscape->Allocate();
+    {
+      const float* d = dist->GetBufferPointer();
+      const auto* b = bone->GetBufferPointer();
+      float* l = landscape->GetBufferPointer();
+      for (std::size_t i = 0; i < cg.voxel_count(); ++i) l[i] = b[i] ? -d[i] : 1e6f;
+    }
+    auto ws = itk::MorphologicalWatershedFromMarkersImageFilter<FloatImage, LabelImage>::New();
+    ws->SetInput(landscape);
+    ws->SetMarkerImage(markers);
+    ws->SetMarkWatershedLine(false);
+    ws->SetFullyConnected(false);
+    ws->Update();
+    const auto* w = ws->GetOutput()->GetBufferPointer();
+    const auto* b = bone->GetBufferPointer();
+    const auto* m = markers->GetBufferPointer();
+    // Keep the reconstruction within a band around the mandible's core so
+    // that thin bright structures (streaks) flooded from it stay out.
+    auto core_m = io::make_image<MaskImage>(cg);
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) core_m->GetBufferPointer()[i] = m[i] == mand;
+    auto near = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
+    near->SetInput(core_m);
+    near->SetInsideIsPositive(false);
+    near->SetSquaredDistance(false);
+    near->SetUseImageSpacing(true);
+    near->Update();
+    const float* nd = near->GetOutput()->GetBufferPointer();
+    const float band = static_cast<float>(rsep + 2.0 * max_spacing);
+    for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = b[i] && w[i] == mand && nd[i] <= band;
+  }
+
+  // Surface at the half-maximum between soft tissue and cortical bone: the
+  // 250 HU bone threshold lies outside the edge of a blurred cortex. Only
+  // where the scan resolves the cortex (voxels up to 1.25 mm); the
+  // cancellous core below that level is restored by the hole filling.
+  if (max_spacing <= 1.25) {
+    const double surface_hu = offset + opt.surface_threshold_hu;
+    std::vector<float> hu_crop(cg.voxel_count());
+    const auto ri0 = region.GetIndex();
+    for (std::size_t k = 0; k < cg.size[2]; ++k)
+      for (std::size_t j = 0; j < cg.size[1]; ++j)
+        for (std::size_t i = 0; i < cg.size[0]; ++i)
+          hu_crop[cg.linear(i, j, k)] = ct.hu[g.linear(i + ri0[0], j + ri0[1], k + ri0[2])];
+    // Keep voxels above the surface level, plus voxels enclosed by them.
+    auto hi_img = io::make_image<MaskImage>(cg);
+    auto* h = hi_img->GetBufferPointer();
+    for (std::size_t i = 0; i < crop_mask.size(); ++i) h[i] = crop_mask[i] && hu_crop[i] >= surface_hu;
+    auto fill_hi = itk::BinaryFillholeImageFilter<MaskImage>::New();
+    fill_hi->SetInput(hi_img);
+    fill_hi->SetForegroundValue(1);
+    fill_hi->FullyConnectedOn();
+    fill_hi->Update();
+    const auto* fh = fill_hi->GetOutput()->GetBufferPointer();
+    for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && fh[i];
+  }
+
+  // Close small gaps, fill the cancellous interior.
+  auto mimg = io::make_image<MaskImage>(cg);
+  std::copy(crop_mask.begin(), crop_mask.end(), mimg->GetBufferPointer());
+  using SE = itk::BinaryBallStructuringElement<unsigned char, 3>;
+  SE se;
+  SE::SizeType radius;
+  for (int a = 0; a < 3; ++a) radius[a] = g.spacing[a] < 0.7 ? 2 : 1;
+  se.SetRadius(radius);
+  se.CreateStructuringElement();
+  auto close = itk::BinaryMorphologicalClosingImageFilter<MaskImage, MaskImage, SE>::New();
+  close->SetInput(mimg);
+  close->SetKernel(se);
+  close->SetForegroundValue(1);
+  auto fill = itk::BinaryFillholeImageFilter<MaskImage>::New();
+  fill->SetInput(close->GetOutput());
+  fill->SetForegroundValue(1);
+  fill->FullyConnectedOn();
+  fill->Update();
+
+  r.mask.geom = g;
+  r.mask.data.assign(g.voxel_count(), 0);
+  const auto* out = fill->GetOutput()->GetBufferPointer();
+  const auto ri = region.GetIndex();
+  for (std::size_t k = 0; k < cg.size[2]; ++k)
+    for (std::size_t j = 0; j < cg.size[1]; ++j)
+      for (std::size_t i = 0; i < cg.size[0]; ++i)
+        if (out[cg.linear(i, j, k)]) r.mask.data[g.linear(i + ri[0], j + ri[1], k + ri[2])] = 1;
+  r.voxels = r.mask.count();
+  if (r.voxels == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
+  r.volume_mm3 = r.voxels * voxel_mm3;
+  r.threshold_hu = threshold;
+  r.offset_hu = offset;
+  r.separation_radius_mm = mand ? rsep : 0.0;
+  r.truncated = touches_border(r.mask);
+  if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
+  return r;
+}
 
 Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const std::string& source) {
   std::set<std::int32_t> present;

@@ -1,6 +1,7 @@
-// Mandible segmentation (ITK). Thin first version: bone threshold, connected
-// components, anatomical choice of the mandible component, hole filling.
-// Issue C replaces the component choice with separation at the teeth and TMJ.
+// Mandible segmentation (ITK): calibration-robust bone threshold, separation
+// of the mandible from skull, teeth, spine and hyoid by marker-based watershed
+// on the bone distance map, anatomical identification, hole filling
+// (docs/segmentation.md).
 #pragma once
 
 #include <string>
@@ -13,6 +14,10 @@ namespace ms::segmentation {
 struct Options {
   double bone_threshold_hu = 250.0;  // HU; cancellous bone is ~250-450, cortical > 1000
   double min_component_cm3 = 4.0;    // smaller components are never the mandible
+  // HU (before the calibration offset) of the mandible's outer surface: about
+  // half-way between soft tissue (~40) and cortical bone (~1200-2000). Used
+  // when voxels are at most 1.25 mm; coarser scans keep the bone threshold.
+  double surface_threshold_hu = 700.0;
 };
 
 struct Result {
@@ -21,6 +26,9 @@ struct Result {
   std::size_t voxels = 0;
   double volume_mm3 = 0;
   bool truncated = false;  // the mask touches the edge of the scan
+  double threshold_hu = 0;          // bone threshold used (after calibration offset)
+  double offset_hu = 0;             // estimated calibration offset (soft-tissue peak - 40 HU)
+  double separation_radius_mm = 0;  // core depth used to separate the mandible (0: not needed/failed)
   std::vector<std::string> warnings;
 };
 

@@ -2,7 +2,9 @@
 // automatic segmentation measured against phantom ground truth.
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <cmath>
+#include <filesystem>
 
 #include "core/error.h"
 #include "phantom/phantom.h"
@@ -114,4 +116,118 @@ TEST(ExternalMask, SeveralPartsAndTruncationAreReported) {
   bool parts = false;
   for (const auto& w : r.warnings) parts |= w.find("3 separate parts") != std::string::npos;
   EXPECT_TRUE(parts);
+}
+
+// ---- automatic segmentation against phantom ground truth ----
+
+#include "geometry/mesh_geometry.h"
+#include "surface/surface.h"
+#include "tests/support/openkbp.h"
+
+namespace {
+
+// Mean symmetric distance between the surfaces of two masks (mm).
+double mean_surface_distance(const Mask& a, const Mask& b) {
+  surface::Options o;
+  o.smoothing_sigma_mm = 1e-3;  // the voxel boundary itself
+  o.target_faces = 40000;
+  const Mesh ma = surface::mesh_from_mask(a, o).mesh, mb = surface::mesh_from_mask(b, o).mesh;
+  const geometry::ClosestPointIndex ia(ma), ib(mb);
+  double sum = 0;
+  for (const auto& v : ma.vertices) sum += ib.closest(v).distance;
+  for (const auto& v : mb.vertices) sum += ia.closest(v).distance;
+  return sum / static_cast<double>(ma.vertices.size() + mb.vertices.size());
+}
+
+struct SegCase {
+  const char* name;
+  double spacing, gap, joint;
+  bool metal;
+  double yaw, hu_offset;
+};
+
+}  // namespace
+
+class PhantomSegmentation : public ::testing::TestWithParam<SegCase> {};
+
+TEST_P(PhantomSegmentation, MeetsDiceAndSurfaceDistanceTargets) {
+  const SegCase c = GetParam();
+  phantom::PhantomParams p;
+  p.spacing = {c.spacing, c.spacing, c.spacing};
+  p.fov_mm = {150, 140, 130};
+  p.occlusal_gap_mm = c.gap;
+  p.joint_space_mm = c.joint;
+  p.metal = c.metal;
+  p.yaw_deg = c.yaw;
+  p.seed = 11;
+  auto ph = phantom::generate(p);
+  for (auto& v : ph.ct.hu) v += static_cast<float>(c.hu_offset);
+  const auto r = segmentation::segment_mandible(ph.ct);
+  const double d = ms::testing::dice(r.mask, ph.mandible);
+  const double msd = mean_surface_distance(r.mask, ph.mandible);
+  RecordProperty("dice", std::to_string(d));
+  RecordProperty("mean_surface_distance_mm", std::to_string(msd));
+  EXPECT_GE(d, 0.97) << c.name;
+  EXPECT_LE(msd, 0.3) << c.name;
+  EXPECT_FALSE(r.truncated);
+  EXPECT_GT(r.separation_radius_mm, 0.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Matrix, PhantomSegmentation,
+    ::testing::Values(SegCase{"1mm gap3 joint3", 1.0, 3, 3, false, 0, 0}, SegCase{"0.8mm gap2 joint1.5", 0.8, 2, 1.5, false, 0, 0},
+                      SegCase{"0.8mm gap3 metal", 0.8, 3, 3, true, 0, 0}, SegCase{"1mm plus100HU", 1.0, 3, 3, false, 0, 100},
+                      SegCase{"1mm minus100HU", 1.0, 3, 3, false, 0, -100}, SegCase{"1mm yaw12", 1.0, 3, 2.5, false, 12, 0}),
+    [](const ::testing::TestParamInfo<SegCase>& i) {
+      std::string n = i.param.name;
+      for (auto& ch : n)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+      return n;
+    });
+
+TEST(AutoSegmentation, TruncatedMandibleIsFlagged) {
+  phantom::PhantomParams p;
+  p.spacing = {1, 1, 1};
+  p.fov_mm = {150, 140, 90};  // cuts through the rami: condyles outside
+  p.occlusal_gap_mm = 3;
+  p.joint_space_mm = 3;
+  p.shift_mm = {0, 0, -25};
+  const auto ph = phantom::generate(p);
+  const auto r = segmentation::segment_mandible(ph.ct);
+  EXPECT_TRUE(r.truncated);
+}
+
+TEST(AutoSegmentation, ScanWithoutBoneIsAClearError) {
+  Volume v;
+  v.geom.size = {40, 40, 40};
+  v.hu.assign(v.geom.voxel_count(), 40.0f);
+  try {
+    segmentation::segment_mandible(v);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ExitCode::NoMandible);
+  }
+}
+
+// Real low-resolution scans: the mask either agrees with the clinical contour
+// (Dice >= 0.8, the target) or the result says it could not separate
+// the mandible; never a silently wrong mask.
+TEST(AutoSegmentation, OpenKbpEitherAgreesOrSaysItFailed) {
+  const std::string root = std::string(MANDISYM_SHARED_DATA) + "/openkbp";
+  if (!std::filesystem::exists(root)) GTEST_SKIP() << "shared data not present";
+  for (const char* pt : {"pt_243", "pt_245", "pt_246"}) {
+    const auto c = ms::testing::load_openkbp(root + "/" + pt);
+    segmentation::Result r;
+    try {
+      r = segmentation::segment_mandible(c.ct);
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ExitCode::NoMandible) << pt;
+      continue;
+    }
+    const double d = ms::testing::dice(r.mask, c.mandible);
+    RecordProperty(std::string("dice_") + pt, std::to_string(d));
+    bool flagged = false;
+    for (const auto& w : r.warnings) flagged |= w.find("not separated") != std::string::npos;
+    EXPECT_TRUE(d >= 0.8 || flagged) << pt << ": Dice " << d << " without a warning";
+  }
 }
