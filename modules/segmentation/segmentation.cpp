@@ -120,7 +120,8 @@ unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double 
     if (c.voxels == 0) continue;
     const double vol_cm3 = c.voxels * voxel_mm3 / 1000.0;
     const double w = c.extent(0) + 2 * shrink_mm, d = c.extent(1) + 2 * shrink_mm, h = c.extent(2) + 2 * shrink_mm;
-    if (w < 55 || w > 170 || d < 45 || d > 170 || h < 35 || h > 160 || vol_cm3 < 2.0) continue;
+    // A mandible with teeth is at most ~120 cm3: a larger core is still fused to the skull.
+    if (w < 55 || w > 170 || d < 55 || d > 170 || h < 45 || h > 160 || vol_cm3 < 2.0 || vol_cm3 > 150.0) continue;
     if (c.centroid()[2] < best_z) {
       best_z = c.centroid()[2];
       best = l;
@@ -189,40 +190,107 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   const Geometry cg = io::geometry_of(bone.GetPointer());
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
-
-  // Distance to the bone surface (mm, positive inside).
-  auto dmap = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
-  dmap->SetInput(bone);
-  dmap->SetInsideIsPositive(true);
-  dmap->SetSquaredDistance(false);
-  dmap->SetUseImageSpacing(true);
-  dmap->SetBackgroundValue(0);
-  dmap->Update();
-  FloatImage::Pointer dist = dmap->GetOutput();
-
-  // Markers: cores deeper than r. Thin contacts (cusp contacts, bridged joint
-  // spaces, streak rays) have no core, so the cores separate.
-  const double rsep = std::max(1.0, 0.75 * max_spacing);
-  auto core = io::make_image<MaskImage>(cg);
+  std::vector<float> hu_crop(cg.voxel_count());
   {
-    const float* d = dist->GetBufferPointer();
-    auto* c = core->GetBufferPointer();
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = d[i] > rsep;
+    const auto ri0 = region.GetIndex();
+    for (std::size_t k = 0; k < cg.size[2]; ++k)
+      for (std::size_t j = 0; j < cg.size[1]; ++j)
+        for (std::size_t i = 0; i < cg.size[0]; ++i)
+          hu_crop[cg.linear(i, j, k)] = ct.hu[g.linear(i + ri0[0], j + ri0[1], k + ri0[2])];
   }
-  auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-  cc->SetInput(core);
-  cc->FullyConnectedOff();
-  auto relabel = itk::RelabelComponentImageFilter<LabelImage, LabelImage>::New();
-  relabel->SetInput(cc->GetOutput());
-  relabel->SetMinimumObjectSize(static_cast<itk::SizeValueType>(std::max(8.0, 100.0 / voxel_mm3)));
-  relabel->Update();
-  LabelImage::Pointer markers = relabel->GetOutput();
-  const unsigned n_markers = static_cast<unsigned>(relabel->GetNumberOfObjects());
-  const auto feats = component_features(markers.GetPointer(), n_markers, cg);
-  const unsigned mand = pick_mandible(feats, voxel_mm3, rsep);
+
+  const double rsep = std::max(1.0, 0.75 * max_spacing);
+  // Markers: cores (deeper than rsep) of a solid. Thin contacts (cusp
+  // contacts, bridged joint spaces, streak rays) have no core, so the cores
+  // separate. First try the dense-bone solid (cortex and enamel, holes filled
+  // so the cancellous core counts): partial-volume valleys between teeth in
+  // occlusion and across a narrow joint space fall below its threshold. Then
+  // the whole bone mask.
+  auto cores_of = [&](MaskImage::Pointer solid, double depth, unsigned* n_out, std::vector<Features>* f_out) {
+    auto dmap = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
+    dmap->SetInput(solid);
+    dmap->SetInsideIsPositive(true);
+    dmap->SetSquaredDistance(false);
+    dmap->SetUseImageSpacing(true);
+    dmap->SetBackgroundValue(0);
+    dmap->Update();
+    auto core = io::make_image<MaskImage>(cg);
+    const float* d = dmap->GetOutput()->GetBufferPointer();
+    auto* c = core->GetBufferPointer();
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = d[i] > depth;
+    auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
+    cc->SetInput(core);
+    cc->FullyConnectedOff();
+    auto relabel = itk::RelabelComponentImageFilter<LabelImage, LabelImage>::New();
+    relabel->SetInput(cc->GetOutput());
+    relabel->SetMinimumObjectSize(static_cast<itk::SizeValueType>(std::max(8.0, 100.0 / voxel_mm3)));
+    relabel->Update();
+    *n_out = static_cast<unsigned>(relabel->GetNumberOfObjects());
+    *f_out = component_features(relabel->GetOutput(), *n_out, cg);
+    LabelImage::Pointer out = relabel->GetOutput();
+    out->DisconnectPipeline();
+    return out;
+  };
+  LabelImage::Pointer markers;
+  unsigned n_markers = 0, mand = 0;
+  std::vector<Features> feats;
+  MaskImage::Pointer dense_solid;
+  {
+    auto dense = io::make_image<MaskImage>(cg);
+    auto* dn = dense->GetBufferPointer();
+    const auto* b = bone->GetBufferPointer();
+    const double dense_hu = offset + opt.dense_threshold_hu;
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) dn[i] = b[i] && hu_crop[i] >= dense_hu;
+    auto fill_d = itk::BinaryFillholeImageFilter<MaskImage>::New();
+    fill_d->SetInput(dense);
+    fill_d->SetForegroundValue(1);
+    fill_d->FullyConnectedOff();  // a thin shell must not leak diagonally
+    fill_d->Update();
+    // Fill only thick cavities (cancellous cores). A thin enclosed cavity is a
+    // joint space or an occlusal gap wrapped by bone: filling it would weld
+    // the condyle to its fossa, the lower teeth to the upper.
+    auto cavity = io::make_image<MaskImage>(cg);
+    const auto* filled = fill_d->GetOutput()->GetBufferPointer();
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) cavity->GetBufferPointer()[i] = filled[i] && !dn[i];
+    auto cdist = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
+    cdist->SetInput(cavity);
+    cdist->SetInsideIsPositive(true);
+    cdist->SetSquaredDistance(false);
+    cdist->SetUseImageSpacing(true);
+    cdist->SetBackgroundValue(0);
+    auto ccav = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
+    ccav->SetInput(cavity);
+    ccav->FullyConnectedOff();
+    ccav->Update();
+    cdist->Update();
+    const auto* cl = ccav->GetOutput()->GetBufferPointer();
+    const float* cd = cdist->GetOutput()->GetBufferPointer();
+    std::vector<float> depth(ccav->GetObjectCount() + 1, 0.0f);
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+      if (cl[i]) depth[cl[i]] = std::max(depth[cl[i]], cd[i]);
+    const float thick = static_cast<float>(std::max(1.0, 0.75 * max_spacing));
+    dense_solid = io::make_image<MaskImage>(cg);
+    auto* ds = dense_solid->GetBufferPointer();
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) ds[i] = dn[i] || (cl[i] && depth[cl[i]] >= thick);
+  }
+  // Deepen the cores until the mandible's separates (teeth in occlusion touch
+  // over a patch a few mm wide); dense solid first, then the bone mask.
+  double r_used = 0;
+  for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
+    for (double rr = rsep; rr <= std::max(rsep, 3.0) + 1e-9 && !mand; rr += 0.5) {
+      markers = cores_of(solid, rr, &n_markers, &feats);
+      mand = pick_mandible(feats, voxel_mm3, rr);
+      if (mand) {
+        r.marker_source = name;
+        r_used = rr;
+      }
+    }
+    if (mand) break;
+  }
   if (std::getenv("MANDISYM_DEBUG_SEG"))
     for (unsigned l = 1; l <= n_markers; ++l)
-      std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f%s\n", l, feats[l].voxels * voxel_mm3 / 1000, feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], l == mand ? "  <- mandible" : "");
+      std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
+                   feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], l == mand ? "  <- mandible" : "");
 
   std::vector<std::uint8_t> crop_mask(cg.voxel_count(), 0);
   if (mand == 0) {
@@ -250,14 +318,25 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   } else {
     // Watershed from all markers on -distance: boundaries settle on the necks.
     auto landscape = FloatImage::New();
-    landscape->CopyInformation(dist);
-    landscape->SetRegions(dist->GetLargestPossibleRegion());
+    landscape->CopyInformation(bone);
+    landscape->SetRegions(bone->GetLargestPossibleRegion());
     landscape->Allocate();
     {
-      const float* d = dist->GetBufferPointer();
+      // Flood deep and bright first: boundaries settle on geometric necks
+      // (cusp contacts) and in intensity valleys (occlusal gap, joint space).
+      auto dmap = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
+      dmap->SetInput(bone);
+      dmap->SetInsideIsPositive(true);
+      dmap->SetSquaredDistance(false);
+      dmap->SetUseImageSpacing(true);
+      dmap->SetBackgroundValue(0);
+      dmap->Update();
+      const float* depth = dmap->GetOutput()->GetBufferPointer();
       const auto* b = bone->GetBufferPointer();
+      const float hu0 = static_cast<float>(offset);
       float* l = landscape->GetBufferPointer();
-      for (std::size_t i = 0; i < cg.voxel_count(); ++i) l[i] = b[i] ? -d[i] : 1e6f;
+      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+        l[i] = b[i] ? -std::min(depth[i], 4.0f) / 4.0f - std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f : 1e6f;
     }
     auto ws = itk::MorphologicalWatershedFromMarkersImageFilter<FloatImage, LabelImage>::New();
     ws->SetInput(landscape);
@@ -279,7 +358,7 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
     near->SetUseImageSpacing(true);
     near->Update();
     const float* nd = near->GetOutput()->GetBufferPointer();
-    const float band = static_cast<float>(rsep + 2.0 * max_spacing);
+    const float band = static_cast<float>(r_used + 2.0 * max_spacing);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = b[i] && w[i] == mand && nd[i] <= band;
   }
 
@@ -289,12 +368,6 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   // cancellous core below that level is restored by the hole filling.
   if (max_spacing <= 1.25) {
     const double surface_hu = offset + opt.surface_threshold_hu;
-    std::vector<float> hu_crop(cg.voxel_count());
-    const auto ri0 = region.GetIndex();
-    for (std::size_t k = 0; k < cg.size[2]; ++k)
-      for (std::size_t j = 0; j < cg.size[1]; ++j)
-        for (std::size_t i = 0; i < cg.size[0]; ++i)
-          hu_crop[cg.linear(i, j, k)] = ct.hu[g.linear(i + ri0[0], j + ri0[1], k + ri0[2])];
     // Keep voxels above the surface level, plus voxels enclosed by them.
     auto hi_img = io::make_image<MaskImage>(cg);
     auto* h = hi_img->GetBufferPointer();
@@ -331,16 +404,20 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   r.mask.data.assign(g.voxel_count(), 0);
   const auto* out = fill->GetOutput()->GetBufferPointer();
   const auto ri = region.GetIndex();
+  // Closing must only add voxels; ITK's erodes the layer at the image edge,
+  // which would hide truncation: union with its input.
   for (std::size_t k = 0; k < cg.size[2]; ++k)
     for (std::size_t j = 0; j < cg.size[1]; ++j)
-      for (std::size_t i = 0; i < cg.size[0]; ++i)
-        if (out[cg.linear(i, j, k)]) r.mask.data[g.linear(i + ri[0], j + ri[1], k + ri[2])] = 1;
+      for (std::size_t i = 0; i < cg.size[0]; ++i) {
+        const std::size_t c = cg.linear(i, j, k);
+        if (out[c] || crop_mask[c]) r.mask.data[g.linear(i + ri[0], j + ri[1], k + ri[2])] = 1;
+      }
   r.voxels = r.mask.count();
   if (r.voxels == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
   r.volume_mm3 = r.voxels * voxel_mm3;
   r.threshold_hu = threshold;
   r.offset_hu = offset;
-  r.separation_radius_mm = mand ? rsep : 0.0;
+  r.separation_radius_mm = mand ? r_used : 0.0;
   r.truncated = touches_border(r.mask);
   if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
   return r;

@@ -18,6 +18,10 @@ struct Options {
   // half-way between soft tissue (~40) and cortical bone (~1200-2000). Used
   // when voxels are at most 1.25 mm; coarser scans keep the bone threshold.
   double surface_threshold_hu = 700.0;
+  // HU (before the calibration offset) of dense bone (cortex, enamel) used for
+  // the separation markers; partial-volume valleys between teeth in occlusion
+  // and across a narrow joint space fall below it.
+  double dense_threshold_hu = 1000.0;
 };
 
 struct Result {
@@ -28,7 +32,8 @@ struct Result {
   bool truncated = false;  // the mask touches the edge of the scan
   double threshold_hu = 0;          // bone threshold used (after calibration offset)
   double offset_hu = 0;             // estimated calibration offset (soft-tissue peak - 40 HU)
-  double separation_radius_mm = 0;  // core depth used to separate the mandible (0: not needed/failed)
+  double separation_radius_mm = 0;  // core depth used to separate the mandible (0: failed)
+  std::string marker_source;        // "dense bone", "bone", or empty when separation failed
   std::vector<std::string> warnings;
 };
 

@@ -175,15 +175,33 @@ TEST_P(PhantomSegmentation, MeetsDiceAndSurfaceDistanceTargets) {
 
 INSTANTIATE_TEST_SUITE_P(
     Matrix, PhantomSegmentation,
-    ::testing::Values(SegCase{"1mm gap3 joint3", 1.0, 3, 3, false, 0, 0}, SegCase{"0.8mm gap2 joint1.5", 0.8, 2, 1.5, false, 0, 0},
-                      SegCase{"0.8mm gap3 metal", 0.8, 3, 3, true, 0, 0}, SegCase{"1mm plus100HU", 1.0, 3, 3, false, 0, 100},
-                      SegCase{"1mm minus100HU", 1.0, 3, 3, false, 0, -100}, SegCase{"1mm yaw12", 1.0, 3, 2.5, false, 12, 0}),
+    ::testing::Values(SegCase{"1mm gap3 joint3", 1.0, 3, 3, false, 0, 0}, SegCase{"0.8mm gap2 joint1", 0.8, 2, 1, false, 0, 0},
+                      SegCase{"0.8mm gap1 joint2.5", 0.8, 1, 2.5, false, 0, 0}, SegCase{"0.8mm gap1 joint1 metal", 0.8, 1, 1, true, 0, 0},
+                      SegCase{"1mm plus100HU", 1.0, 3, 3, false, 0, 100}, SegCase{"1mm minus100HU", 1.0, 3, 3, false, 0, -100},
+                      SegCase{"1mm yaw12", 1.0, 3, 2.5, false, 12, 0}),
     [](const ::testing::TestParamInfo<SegCase>& i) {
       std::string n = i.param.name;
       for (auto& ch : n)
         if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
       return n;
     });
+
+// Teeth in occlusion (gap 0): separated by deeper cores; below the 0.97 target
+// for now (issue C is open). Guards the level reached: 0.949 measured.
+TEST(AutoSegmentation, TeethInOcclusionAreSeparated) {
+  phantom::PhantomParams p;
+  p.spacing = {0.8, 0.8, 0.8};
+  p.fov_mm = {150, 140, 130};
+  p.occlusal_gap_mm = 0;
+  p.joint_space_mm = 2.5;
+  p.seed = 3;
+  const auto ph = phantom::generate(p);
+  const auto r = segmentation::segment_mandible(ph.ct);
+  const double d = ms::testing::dice(r.mask, ph.mandible);
+  RecordProperty("dice", std::to_string(d));
+  EXPECT_GE(d, 0.94);
+  EXPECT_GT(r.separation_radius_mm, 1.0);  // needed deeper cores than the default
+}
 
 TEST(AutoSegmentation, TruncatedMandibleIsFlagged) {
   phantom::PhantomParams p;
