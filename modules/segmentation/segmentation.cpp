@@ -206,7 +206,9 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   // so the cancellous core counts): partial-volume valleys between teeth in
   // occlusion and across a narrow joint space fall below its threshold. Then
   // the whole bone mask.
-  auto cores_of = [&](MaskImage::Pointer solid, double depth, unsigned* n_out, std::vector<Features>* f_out) {
+  // Depth inside a solid (mm), computed once per solid and thresholded at
+  // each tried core depth.
+  auto depth_of = [&](MaskImage::Pointer solid) {
     auto dmap = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
     dmap->SetInput(solid);
     dmap->SetInsideIsPositive(true);
@@ -214,8 +216,13 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
     dmap->SetUseImageSpacing(true);
     dmap->SetBackgroundValue(0);
     dmap->Update();
+    FloatImage::Pointer d = dmap->GetOutput();
+    d->DisconnectPipeline();
+    return d;
+  };
+  auto cores_of = [&](const FloatImage* solid_depth, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
-    const float* d = dmap->GetOutput()->GetBufferPointer();
+    const float* d = solid_depth->GetBufferPointer();
     auto* c = core->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = d[i] > depth;
     auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
@@ -276,9 +283,12 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   // Deepen the cores until the mandible's separates (teeth in occlusion touch
   // over a patch a few mm wide); dense solid first, then the bone mask.
   double r_used = 0;
+  FloatImage::Pointer bone_depth;  // reused for the watershed landscape
   for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
+    FloatImage::Pointer sd = depth_of(solid);
+    if (solid == bone) bone_depth = sd;
     for (double rr = rsep; rr <= std::max(rsep, 3.0) + 1e-9 && !mand; rr += 0.5) {
-      markers = cores_of(solid, rr, &n_markers, &feats);
+      markers = cores_of(sd.GetPointer(), rr, &n_markers, &feats);
       mand = pick_mandible(feats, voxel_mm3, rr);
       if (mand) {
         r.marker_source = name;
@@ -324,14 +334,8 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
     {
       // Flood deep and bright first: boundaries settle on geometric necks
       // (cusp contacts) and in intensity valleys (occlusal gap, joint space).
-      auto dmap = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
-      dmap->SetInput(bone);
-      dmap->SetInsideIsPositive(true);
-      dmap->SetSquaredDistance(false);
-      dmap->SetUseImageSpacing(true);
-      dmap->SetBackgroundValue(0);
-      dmap->Update();
-      const float* depth = dmap->GetOutput()->GetBufferPointer();
+      if (!bone_depth) bone_depth = depth_of(bone);
+      const float* depth = bone_depth->GetBufferPointer();
       const auto* b = bone->GetBufferPointer();
       const float hu0 = static_cast<float>(offset);
       float* l = landscape->GetBufferPointer();
