@@ -391,35 +391,32 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   return scan;
 }
 
-void write_volume(const Volume& volume, const std::string& path) {
+namespace {
+
+// Writes a buffer on a grid as an ITK image file (format from the extension).
+template <class ImageT, class Values>
+void write_image(const Geometry& geom, const Values& values, const std::string& path, const char* what) {
   register_factories();
-  auto img = make_image<FloatImage>(volume.geom);
-  std::copy(volume.hu.begin(), volume.hu.end(), img->GetBufferPointer());
-  auto writer = itk::ImageFileWriter<FloatImage>::New();
+  auto img = make_image<ImageT>(geom);
+  std::copy(values.begin(), values.end(), img->GetBufferPointer());
+  auto writer = itk::ImageFileWriter<ImageT>::New();
   writer->SetInput(img);
   writer->SetFileName(path);
   writer->UseCompressionOn();
   try {
     writer->Update();
   } catch (const itk::ExceptionObject& e) {
-    throw Error(ExitCode::OutputFailed, path + ": cannot write volume: " + first_line(e.GetDescription()));
+    throw Error(ExitCode::OutputFailed, path + ": cannot write " + what + ": " + first_line(e.GetDescription()));
   }
 }
 
-void write_mask(const Mask& mask, const std::string& path) {
-  register_factories();
-  auto img = make_image<MaskImage>(mask.geom);
-  std::copy(mask.data.begin(), mask.data.end(), img->GetBufferPointer());
-  auto writer = itk::ImageFileWriter<MaskImage>::New();
-  writer->SetInput(img);
-  writer->SetFileName(path);
-  writer->UseCompressionOn();
-  try {
-    writer->Update();
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(ExitCode::OutputFailed, path + ": cannot write mask: " + first_line(e.GetDescription()));
-  }
+}  // namespace
+
+void write_volume(const Volume& volume, const std::string& path) {
+  write_image<FloatImage>(volume.geom, volume.hu, path, "volume");
 }
+
+void write_mask(const Mask& mask, const std::string& path) { write_image<MaskImage>(mask.geom, mask.data, path, "mask"); }
 
 Mask read_mask(const std::string& path) {
   register_factories();
