@@ -141,9 +141,21 @@ typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionTy
 
 }  // namespace
 
-Result segment_mandible(const Volume& ct, const Options& opt) {
+// Steps 1-5 of docs/segmentation.md on one grid: the mandible's region and the
+// other bones' regions (watershed), on the bone bounding box.
+struct Separated {
+  MaskImage::RegionType region;      // crop of the input grid
+  Geometry cg;                       // crop geometry
+  std::vector<std::uint8_t> mand;    // mandible region (bone, before surface placement)
+  std::vector<std::uint8_t> other;   // bone given to other markers
+  bool separated = false;
+  Result info;                       // method, offsets, warnings, radius, marker source
+};
+
+static Separated separate(const Volume& ct, const Options& opt) {
+  Separated out;
+  Result& r = out.info;
   const Geometry& g = ct.geom;
-  Result r;
   r.method = "auto";
   std::size_t soft = 0;
   const double offset = estimate_offset(ct, &soft);
@@ -287,10 +299,23 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
     FloatImage::Pointer sd = depth_of(solid);
     if (solid == bone) bone_depth = sd;
-    for (double rr = rsep; rr <= std::max(rsep, 3.0) + 1e-9 && !mand; rr += 0.5) {
-      markers = cores_of(sd.GetPointer(), rr, &n_markers, &feats);
-      mand = pick_mandible(feats, voxel_mm3, rr);
-      if (mand) {
+    // Every depth is tried; the tallest mandible core wins: a core cut off
+    // below fused teeth (only the lower body) is shorter than one reaching
+    // the condyles.
+    double best_height = 0;
+    for (double rr = rsep; rr <= std::max(rsep, 3.0) + 1e-9; rr += 0.5) {
+      unsigned n = 0;
+      std::vector<Features> f;
+      LabelImage::Pointer m = cores_of(sd.GetPointer(), rr, &n, &f);
+      const unsigned l = pick_mandible(f, voxel_mm3, rr);
+      if (!l) continue;
+      const double height = f[l].extent(2) + 2 * rr;
+      if (height > best_height + 1.0) {
+        best_height = height;
+        markers = m;
+        n_markers = n;
+        feats = std::move(f);
+        mand = l;
         r.marker_source = name;
         r_used = rr;
       }
@@ -364,8 +389,42 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
     const float* nd = near->GetOutput()->GetBufferPointer();
     const float band = static_cast<float>(r_used + 2.0 * max_spacing);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = b[i] && w[i] == mand && nd[i] <= band;
+    out.other.assign(crop_mask.size(), 0);
+    for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && w[i] != mand && w[i] != 0;
   }
 
+  out.region = region;
+  out.cg = cg;
+  out.mand = std::move(crop_mask);
+  out.separated = mand != 0;
+  r.threshold_hu = threshold;
+  r.offset_hu = offset;
+  r.separation_radius_mm = mand ? r_used : 0.0;
+  return out;
+}
+
+// Steps 6-7 on the input grid: surface placement, clean-up, truncation.
+static Result finalize(const Volume& ct, const Options& opt, const MaskImage::RegionType& region,
+                       std::vector<std::uint8_t> crop_mask, Result r) {
+  const Geometry& g = ct.geom;
+  const Geometry cg = [&] {
+    Geometry c = g;
+    for (int a = 0; a < 3; ++a) c.size[a] = region.GetSize()[a];
+    c.origin = g.index_to_lps(static_cast<double>(region.GetIndex()[0]), static_cast<double>(region.GetIndex()[1]),
+                              static_cast<double>(region.GetIndex()[2]));
+    return c;
+  }();
+  const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+  const double voxel_mm3 = g.voxel_volume_mm3();
+  const double offset = r.offset_hu;
+  std::vector<float> hu_crop(cg.voxel_count());
+  {
+    const auto ri0 = region.GetIndex();
+    for (std::size_t k = 0; k < cg.size[2]; ++k)
+      for (std::size_t j = 0; j < cg.size[1]; ++j)
+        for (std::size_t i = 0; i < cg.size[0]; ++i)
+          hu_crop[cg.linear(i, j, k)] = ct.hu[g.linear(i + ri0[0], j + ri0[1], k + ri0[2])];
+  }
   // Surface at the half-maximum between soft tissue and cortical bone: the
   // 250 HU bone threshold lies outside the edge of a blurred cortex. Only
   // where the scan resolves the cortex (voxels up to 1.25 mm); the
@@ -419,12 +478,88 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   r.voxels = r.mask.count();
   if (r.voxels == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
   r.volume_mm3 = r.voxels * voxel_mm3;
-  r.threshold_hu = threshold;
-  r.offset_hu = offset;
-  r.separation_radius_mm = mand ? r_used : 0.0;
   r.truncated = touches_border(r.mask);
   if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
   return r;
+}
+
+Result segment_mandible(const Volume& ct, const Options& opt) {
+  const Geometry& g = ct.geom;
+  // Inputs finer than ~0.8 mm: separate on a bin-averaged grid, place the
+  // surface at full resolution (docs/segmentation.md, "Multi-resolution").
+  std::array<unsigned, 3> f{1, 1, 1};
+  for (int a = 0; a < 3; ++a)
+    f[a] = std::max(1u, static_cast<unsigned>(std::floor(opt.separation_spacing_mm / g.spacing[a] + 1e-6)));
+  if (f[0] * f[1] * f[2] == 1) {
+    Separated sp = separate(ct, opt);
+    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info);
+  }
+  Volume coarse;
+  coarse.geom = g;
+  for (int a = 0; a < 3; ++a) {
+    coarse.geom.size[a] = g.size[a] / f[a];
+    coarse.geom.spacing[a] = g.spacing[a] * f[a];
+  }
+  if (coarse.geom.size[0] < 8 || coarse.geom.size[1] < 8 || coarse.geom.size[2] < 8) {
+    Separated sp = separate(ct, opt);
+    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info);
+  }
+  // Bin centre of coarse voxel 0 sits at full index (f - 1) / 2.
+  coarse.geom.origin = g.index_to_lps(0.5 * (f[0] - 1), 0.5 * (f[1] - 1), 0.5 * (f[2] - 1));
+  coarse.hu.assign(coarse.geom.voxel_count(), 0.0f);
+  const double inv = 1.0 / (f[0] * f[1] * f[2]);
+  const long cz = static_cast<long>(coarse.geom.size[2]);
+#pragma omp parallel for schedule(static)
+  for (long K = 0; K < cz; ++K)
+    for (std::size_t J = 0; J < coarse.geom.size[1]; ++J)
+      for (std::size_t I = 0; I < coarse.geom.size[0]; ++I) {
+        double acc = 0;
+        for (unsigned dk = 0; dk < f[2]; ++dk)
+          for (unsigned dj = 0; dj < f[1]; ++dj)
+            for (unsigned di = 0; di < f[0]; ++di) acc += ct.hu[g.linear(I * f[0] + di, J * f[1] + dj, K * f[2] + dk)];
+        coarse.hu[coarse.geom.linear(I, J, static_cast<std::size_t>(K))] = static_cast<float>(acc * inv);
+      }
+  Separated sp = separate(coarse, opt);
+  // Full-resolution region: the coarse mandible region, grown by one coarse
+  // voxel into anything not given to another bone.
+  const auto ci = sp.region.GetIndex();
+  const auto cs = sp.region.GetSize();
+  MaskImage::RegionType region;
+  for (int a = 0; a < 3; ++a) {
+    const long lo = std::max(0L, (static_cast<long>(ci[a]) - 1) * static_cast<long>(f[a]));
+    const long hi = std::min(static_cast<long>(g.size[a]), (static_cast<long>(ci[a] + cs[a]) + 1) * static_cast<long>(f[a]));
+    region.SetIndex(a, lo);
+    region.SetSize(a, static_cast<itk::SizeValueType>(hi - lo));
+  }
+  const Geometry& cg = sp.cg;
+  auto at = [&](const std::vector<std::uint8_t>& m, long I, long J, long K) -> bool {
+    I -= ci[0], J -= ci[1], K -= ci[2];
+    if (m.empty() || I < 0 || J < 0 || K < 0 || I >= long(cg.size[0]) || J >= long(cg.size[1]) || K >= long(cg.size[2])) return false;
+    return m[cg.linear(static_cast<std::size_t>(I), static_cast<std::size_t>(J), static_cast<std::size_t>(K))] != 0;
+  };
+  const double bone_hu = opt.bone_threshold_hu + sp.info.offset_hu;
+  const auto ri = region.GetIndex();
+  const auto rs = region.GetSize();
+  Geometry fg = g;
+  for (int a = 0; a < 3; ++a) fg.size[a] = rs[a];
+  std::vector<std::uint8_t> mask(fg.voxel_count(), 0);
+  const long nz = static_cast<long>(rs[2]);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < rs[1]; ++j)
+      for (std::size_t i = 0; i < rs[0]; ++i) {
+        const long x = static_cast<long>(i) + ri[0], y = static_cast<long>(j) + ri[1], z = k + ri[2];
+        if (ct.hu[g.linear(x, y, z)] < bone_hu) continue;
+        const long I = std::min<long>(x / f[0], long(coarse.geom.size[0]) - 1), J = std::min<long>(y / f[1], long(coarse.geom.size[1]) - 1),
+                   K = std::min<long>(z / f[2], long(coarse.geom.size[2]) - 1);
+        bool keep = at(sp.mand, I, J, K);
+        if (!keep && !at(sp.other, I, J, K))
+          for (int dk = -1; dk <= 1 && !keep; ++dk)
+            for (int dj = -1; dj <= 1 && !keep; ++dj)
+              for (int di = -1; di <= 1 && !keep; ++di) keep = at(sp.mand, I + di, J + dj, K + dk);
+        mask[fg.linear(i, j, static_cast<std::size_t>(k))] = keep;
+      }
+  return finalize(ct, opt, region, std::move(mask), sp.info);
 }
 
 Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const std::string& source) {

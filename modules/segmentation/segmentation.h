@@ -22,6 +22,9 @@ struct Options {
   // the separation markers; partial-volume valleys between teeth in occlusion
   // and across a narrow joint space fall below it.
   double dense_threshold_hu = 1000.0;
+  // Inputs finer than this (mm) are separated on a bin-averaged grid of about
+  // this spacing; the surface is still placed at full resolution.
+  double separation_spacing_mm = 0.6;
 };
 
 struct Result {

@@ -203,6 +203,25 @@ TEST(AutoSegmentation, TeethInOcclusionAreSeparated) {
   EXPECT_GT(r.separation_radius_mm, 1.0);  // needed deeper cores than the default
 }
 
+// Inputs finer than Options::separation_spacing_mm are separated on a binned
+// grid and refined at full resolution: same targets.
+TEST(AutoSegmentation, MultiResolutionPathMeetsTargets) {
+  phantom::PhantomParams p;
+  p.spacing = {0.8, 0.8, 0.8};
+  p.fov_mm = {150, 140, 130};
+  p.occlusal_gap_mm = 3;
+  p.joint_space_mm = 3;
+  p.seed = 5;
+  const auto ph = phantom::generate(p);
+  segmentation::Options o;
+  o.separation_spacing_mm = 1.6;  // bins of 2 x 2 x 2 voxels
+  const auto r = segmentation::segment_mandible(ph.ct, o);
+  const double d = ms::testing::dice(r.mask, ph.mandible);
+  RecordProperty("dice", std::to_string(d));
+  EXPECT_GE(d, 0.97);
+  EXPECT_LE(mean_surface_distance(r.mask, ph.mandible), 0.3);
+}
+
 TEST(AutoSegmentation, TruncatedMandibleIsFlagged) {
   phantom::PhantomParams p;
   p.spacing = {1, 1, 1};
