@@ -130,6 +130,17 @@ unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double 
   return best;
 }
 
+// HU values of the crop region (geometry cg) of ct.
+std::vector<float> crop_values(const Volume& ct, const MaskImage::RegionType& region, const Geometry& cg) {
+  std::vector<float> out(cg.voxel_count());
+  const auto ri = region.GetIndex();
+  for (std::size_t k = 0; k < cg.size[2]; ++k)
+    for (std::size_t j = 0; j < cg.size[1]; ++j)
+      for (std::size_t i = 0; i < cg.size[0]; ++i)
+        out[cg.linear(i, j, k)] = ct.hu[ct.geom.linear(i + ri[0], j + ri[1], k + ri[2])];
+  return out;
+}
+
 template <class ImageT>
 typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionType& region) {
   auto roi = itk::RegionOfInterestImageFilter<ImageT, ImageT>::New();
@@ -202,14 +213,7 @@ static Separated separate(const Volume& ct, const Options& opt) {
   const Geometry cg = io::geometry_of(bone.GetPointer());
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
-  std::vector<float> hu_crop(cg.voxel_count());
-  {
-    const auto ri0 = region.GetIndex();
-    for (std::size_t k = 0; k < cg.size[2]; ++k)
-      for (std::size_t j = 0; j < cg.size[1]; ++j)
-        for (std::size_t i = 0; i < cg.size[0]; ++i)
-          hu_crop[cg.linear(i, j, k)] = ct.hu[g.linear(i + ri0[0], j + ri0[1], k + ri0[2])];
-  }
+  const std::vector<float> hu_crop = crop_values(ct, region, cg);
 
   const double rsep = std::max(1.0, 0.75 * max_spacing);
   // Markers: cores (deeper than rsep) of a solid. Thin contacts (cusp
@@ -417,14 +421,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
   const double offset = r.offset_hu;
-  std::vector<float> hu_crop(cg.voxel_count());
-  {
-    const auto ri0 = region.GetIndex();
-    for (std::size_t k = 0; k < cg.size[2]; ++k)
-      for (std::size_t j = 0; j < cg.size[1]; ++j)
-        for (std::size_t i = 0; i < cg.size[0]; ++i)
-          hu_crop[cg.linear(i, j, k)] = ct.hu[g.linear(i + ri0[0], j + ri0[1], k + ri0[2])];
-  }
+  const std::vector<float> hu_crop = crop_values(ct, region, cg);
   // Surface at the half-maximum between soft tissue and cortical bone: the
   // 250 HU bone threshold lies outside the edge of a blurred cortex. Only
   // where the scan resolves the cortex (voxels up to 1.25 mm); the
