@@ -52,6 +52,13 @@ const cli::CommandSpec& run_spec() {
 
 namespace {
 
+// Shortest text that reads back as the same number ("250", "0.6").
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.10g", v);
+  return b;
+}
+
 class Stopwatch {
  public:
   double lap() {
@@ -124,6 +131,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.seg_voxels = seg.voxels;
     S.seg_volume_mm3 = seg.volume_mm3;
     S.truncated = seg.truncated;
+    S.seg_threshold_hu = seg.threshold_hu;
+    S.seg_offset_hu = seg.offset_hu;
+    S.seg_separation_mm = seg.separation_radius_mm;
+    S.seg_marker_source = seg.marker_source;
     for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
     stage("segment", 2);
 
@@ -162,11 +173,11 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     throw Error(e.code(), input + ": " + e.what());
   }
 
-  S.parameters["hu_offset"] = std::to_string(ro.hu_offset);
-  S.parameters["bone_threshold_hu"] = std::to_string(so.bone_threshold_hu);
-  S.parameters["surface_smoothing_sigma_mm"] = std::to_string(mo.smoothing_sigma_mm);
+  S.parameters["hu_offset"] = num(ro.hu_offset);
+  S.parameters["bone_threshold_hu"] = num(so.bone_threshold_hu);
+  S.parameters["surface_smoothing_sigma_mm"] = num(mo.smoothing_sigma_mm);
   S.parameters["surface_target_faces"] = std::to_string(mo.target_faces);
-  S.parameters["saf_disk_radius_mm"] = std::to_string(sao.disk_radius_mm);
+  S.parameters["saf_disk_radius_mm"] = num(sao.disk_radius_mm);
   S.parameters["landmark_method"] = S.landmarks.method;
 
   // ---- outputs, staged then moved into place ----

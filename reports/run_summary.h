@@ -25,6 +25,8 @@ struct RunSummary {
   std::size_t seg_voxels = 0;
   double seg_volume_mm3 = 0;
   bool truncated = false;
+  double seg_threshold_hu = 0, seg_offset_hu = 0, seg_separation_mm = 0;
+  std::string seg_marker_source;
   surface::MeshStats mesh;
   landmarks::Result landmarks;
   reference::Result reference;

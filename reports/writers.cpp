@@ -130,6 +130,12 @@ json::Value results_json(const RunSummary& s) {
   seg["voxels"] = s.seg_voxels;
   seg["volume_mm3"] = s.seg_volume_mm3;
   seg["truncated"] = s.truncated;
+  if (s.segmentation_method == "auto") {
+    seg["bone_threshold_hu"] = s.seg_threshold_hu;
+    seg["calibration_offset_hu"] = s.seg_offset_hu;
+    seg["separation_depth_mm"] = s.seg_separation_mm > 0 ? Value(s.seg_separation_mm) : Value();
+    seg["marker_source"] = s.seg_marker_source.empty() ? Value() : Value(s.seg_marker_source);
+  }
 
   auto& mesh = root["mesh"];
   mesh["vertices"] = s.mesh.vertices;
