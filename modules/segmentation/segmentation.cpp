@@ -122,6 +122,9 @@ unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double 
     const double w = c.extent(0) + 2 * shrink_mm, d = c.extent(1) + 2 * shrink_mm, h = c.extent(2) + 2 * shrink_mm;
     // A mandible with teeth is at most ~120 cm3: a larger core is still fused to the skull.
     if (w < 55 || w > 170 || d < 55 || d > 170 || h < 45 || h > 160 || vol_cm3 < 2.0 || vol_cm3 > 150.0) continue;
+    // A mandible is wider (bicondylar) than it is tall (condylion to menton);
+    // the cervical spine fused with the skull base is the reverse.
+    if (h > 1.3 * w) continue;
     if (c.centroid()[2] < best_z) {
       best_z = c.centroid()[2];
       best = l;
@@ -163,7 +166,7 @@ struct Separated {
   Result info;                       // method, offsets, warnings, radius, marker source
 };
 
-static Separated separate(const Volume& ct, const Options& opt) {
+static Separated separate(const Volume& ct, const Options& opt, double native_max_spacing) {
   Separated out;
   Result& r = out.info;
   const Geometry& g = ct.geom;
@@ -391,7 +394,7 @@ static Separated separate(const Volume& ct, const Options& opt) {
     near->SetUseImageSpacing(true);
     near->Update();
     const float* nd = near->GetOutput()->GetBufferPointer();
-    const float band = static_cast<float>(r_used + 2.0 * max_spacing);
+    const float band = static_cast<float>(r_used + 2.0 * std::max(max_spacing, native_max_spacing));  // two voxels of the coarser of the grid and the scan
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = b[i] && w[i] == mand && nd[i] <= band;
     out.other.assign(crop_mask.size(), 0);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && w[i] != mand && w[i] != 0;
@@ -407,9 +410,16 @@ static Separated separate(const Volume& ct, const Options& opt) {
   return out;
 }
 
+static void set_truncation(Result& r) {
+  r.truncated = touches_border(r.mask);
+  if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
+}
+
 // Steps 6-7 on the input grid: surface placement, clean-up, truncation.
+// native_max_spacing: the scan's own coarsest spacing (the grid may be a finer
+// interpolation of it, which does not resolve a cortex the scan did not).
 static Result finalize(const Volume& ct, const Options& opt, const MaskImage::RegionType& region,
-                       std::vector<std::uint8_t> crop_mask, Result r) {
+                       std::vector<std::uint8_t> crop_mask, Result r, double native_max_spacing) {
   const Geometry& g = ct.geom;
   const Geometry cg = [&] {
     Geometry c = g;
@@ -426,7 +436,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   // 250 HU bone threshold lies outside the edge of a blurred cortex. Only
   // where the scan resolves the cortex (voxels up to 1.25 mm); the
   // cancellous core below that level is restored by the hole filling.
-  if (max_spacing <= 1.25) {
+  if (native_max_spacing <= 1.25) {
     const double surface_hu = offset + opt.surface_threshold_hu;
     // Keep voxels above the surface level, plus voxels enclosed by them.
     auto hi_img = io::make_image<MaskImage>(cg);
@@ -475,12 +485,13 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   r.voxels = r.mask.count();
   if (r.voxels == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
   r.volume_mm3 = r.voxels * voxel_mm3;
-  r.truncated = touches_border(r.mask);
-  if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
+  set_truncation(r);
   return r;
 }
 
-Result segment_mandible(const Volume& ct, const Options& opt) {
+// Steps 1-7 on the grid of ct (binned for separation when finer than
+// opt.separation_spacing_mm).
+static Result segment_on_grid(const Volume& ct, const Options& opt, double native_max_spacing) {
   const Geometry& g = ct.geom;
   // Inputs finer than ~0.8 mm: separate on a bin-averaged grid, place the
   // surface at full resolution (docs/segmentation.md, "Multi-resolution").
@@ -488,8 +499,8 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
   for (int a = 0; a < 3; ++a)
     f[a] = std::max(1u, static_cast<unsigned>(std::floor(opt.separation_spacing_mm / g.spacing[a] + 1e-6)));
   if (f[0] * f[1] * f[2] == 1) {
-    Separated sp = separate(ct, opt);
-    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info);
+    Separated sp = separate(ct, opt, native_max_spacing);
+    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info, native_max_spacing);
   }
   Volume coarse;
   coarse.geom = g;
@@ -498,8 +509,8 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
     coarse.geom.spacing[a] = g.spacing[a] * f[a];
   }
   if (coarse.geom.size[0] < 8 || coarse.geom.size[1] < 8 || coarse.geom.size[2] < 8) {
-    Separated sp = separate(ct, opt);
-    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info);
+    Separated sp = separate(ct, opt, native_max_spacing);
+    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info, native_max_spacing);
   }
   // Bin centre of coarse voxel 0 sits at full index (f - 1) / 2.
   coarse.geom.origin = g.index_to_lps(0.5 * (f[0] - 1), 0.5 * (f[1] - 1), 0.5 * (f[2] - 1));
@@ -516,7 +527,7 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
             for (unsigned di = 0; di < f[0]; ++di) acc += ct.hu[g.linear(I * f[0] + di, J * f[1] + dj, K * f[2] + dk)];
         coarse.hu[coarse.geom.linear(I, J, static_cast<std::size_t>(K))] = static_cast<float>(acc * inv);
       }
-  Separated sp = separate(coarse, opt);
+  Separated sp = separate(coarse, opt, native_max_spacing);
   // Full-resolution region: the coarse mandible region, grown by one coarse
   // voxel into anything not given to another bone.
   const auto ci = sp.region.GetIndex();
@@ -556,7 +567,153 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
               for (int di = -1; di <= 1 && !keep; ++di) keep = at(sp.mand, I + di, J + dj, K + dk);
         mask[fg.linear(i, j, static_cast<std::size_t>(k))] = keep;
       }
-  return finalize(ct, opt, region, std::move(mask), sp.info);
+  return finalize(ct, opt, region, std::move(mask), sp.info, native_max_spacing);
+}
+
+// Trilinear interpolation of ct onto a grid with the same origin, direction
+// and extent and spacing min(native, max_spacing) per axis.
+static Volume interpolate_finer(const Volume& ct, double max_spacing) {
+  const Geometry& g = ct.geom;
+  Volume o;
+  o.geom = g;
+  std::array<double, 3> step{};  // native index units per working voxel
+  for (int a = 0; a < 3; ++a) {
+    if (g.spacing[a] <= max_spacing) {
+      step[a] = 1.0;
+      continue;
+    }
+    const double ext = static_cast<double>(g.size[a] - 1) * g.spacing[a];
+    o.geom.size[a] = static_cast<std::size_t>(std::floor(ext / max_spacing + 1e-9)) + 1;
+    o.geom.spacing[a] = max_spacing;
+    step[a] = max_spacing / g.spacing[a];
+  }
+  o.hu.assign(o.geom.voxel_count(), 0.0f);
+  const long nz = static_cast<long>(o.geom.size[2]);
+  auto axis = [&](int a, std::size_t i, long* i0, double* f) {
+    const double x = static_cast<double>(i) * step[a];
+    *i0 = std::min(static_cast<long>(x), std::max(0L, static_cast<long>(g.size[a]) - 2));
+    *f = g.size[a] > 1 ? std::min(1.0, x - static_cast<double>(*i0)) : 0.0;
+  };
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < o.geom.size[1]; ++j)
+      for (std::size_t i = 0; i < o.geom.size[0]; ++i) {
+        long x0, y0, z0;
+        double fx, fy, fz;
+        axis(0, i, &x0, &fx);
+        axis(1, j, &y0, &fy);
+        axis(2, static_cast<std::size_t>(k), &z0, &fz);
+        double acc = 0;
+        for (int c = 0; c < 8; ++c) {
+          const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;
+          const double w = (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy) * (dz ? fz : 1 - fz);
+          if (w == 0) continue;
+          acc += w * ct.hu[g.linear(static_cast<std::size_t>(x0 + dx), static_cast<std::size_t>(y0 + dy), static_cast<std::size_t>(z0 + dz))];
+        }
+        o.hu[o.geom.linear(i, j, static_cast<std::size_t>(k))] = static_cast<float>(acc);
+      }
+  return o;
+}
+
+// A mask on a finer grid (same origin and direction) back onto grid g: a
+// voxel is set when at least half of the fine voxels in its footprint are.
+static Mask coarsen(const Mask& fine, const Geometry& g) {
+  Mask m;
+  m.geom = g;
+  m.data.assign(g.voxel_count(), 0);
+  const Geometry& fg = fine.geom;
+  std::array<double, 3> r{};
+  for (int a = 0; a < 3; ++a) r[a] = g.spacing[a] / fg.spacing[a];
+  auto range = [&](int a, std::size_t i, long* lo, long* hi) {
+    *lo = std::max(0L, static_cast<long>(std::ceil((static_cast<double>(i) - 0.5) * r[a] - 1e-9)));
+    *hi = std::min(static_cast<long>(fg.size[a]) - 1, static_cast<long>(std::floor((static_cast<double>(i) + 0.5) * r[a] - 1e-9)));
+    if (*hi < *lo) *hi = *lo = std::min(static_cast<long>(fg.size[a]) - 1, std::lround(static_cast<double>(i) * r[a]));
+  };
+  const long nz = static_cast<long>(g.size[2]);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        long i0, i1, j0, j1, k0, k1;
+        range(0, i, &i0, &i1);
+        range(1, j, &j0, &j1);
+        range(2, static_cast<std::size_t>(k), &k0, &k1);
+        std::size_t on = 0, all = 0;
+        for (long z = k0; z <= k1; ++z)
+          for (long y = j0; y <= j1; ++y)
+            for (long x = i0; x <= i1; ++x, ++all)
+              on += fine.data[fg.linear(static_cast<std::size_t>(x), static_cast<std::size_t>(y), static_cast<std::size_t>(z))];
+        m.data[g.linear(i, j, static_cast<std::size_t>(k))] = 2 * on > all;
+      }
+  return m;
+}
+
+Result segment_mandible(const Volume& ct, const Options& opt) {
+  const Geometry& g = ct.geom;
+  const double native = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+  if (native <= opt.max_working_spacing_mm + 1e-6) return segment_on_grid(ct, opt, native);
+  // Coarse scans (docs/segmentation.md, "Coarse scans"): the cores and necks
+  // the separation relies on are a few mm across, so axes coarser than
+  // max_working_spacing_mm are interpolated, segmented there, and the mask
+  // is brought back to the scan's grid.
+  // Which contacts fall below a core depth depends on how the interpolated
+  // grid happens to sample them, so the separation runs on several working
+  // grids around max_working_spacing_mm and the separated masks vote.
+  std::vector<Result> runs;
+  Result fallback;
+  bool have_fallback = false;
+  for (double factor : {0.8, 0.9, 1.0, 1.1, 1.25}) {
+    const Volume fine = interpolate_finer(ct, factor * opt.max_working_spacing_mm);
+    Result r;
+    try {
+      r = segment_on_grid(fine, opt, native);
+    } catch (const Error&) {
+      if (factor == 1.0) throw;
+      continue;
+    }
+    r.mask = coarsen(r.mask, g);
+    if (r.separation_radius_mm > 0 && r.mask.count() > 0)
+      runs.push_back(std::move(r));
+    else if (factor == 1.0) {
+      fallback = std::move(r);
+      have_fallback = true;
+    }
+  }
+  Result out;
+  if (runs.empty()) {
+    if (!have_fallback) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
+    out = std::move(fallback);
+  } else {
+    std::vector<std::uint8_t> votes(g.voxel_count(), 0);
+    for (const Result& r : runs)
+      for (std::size_t i = 0; i < votes.size(); ++i) votes[i] += r.mask.data[i];
+    Mask consensus;
+    consensus.geom = g;
+    consensus.data.assign(g.voxel_count(), 0);
+    for (std::size_t i = 0; i < votes.size(); ++i) consensus.data[i] = 2 * votes[i] > runs.size();
+    // Report the parameters of the run closest to the consensus.
+    std::size_t best = 0;
+    double best_overlap = -1;
+    for (std::size_t k = 0; k < runs.size(); ++k) {
+      std::size_t both = 0, sum = 0;
+      for (std::size_t i = 0; i < votes.size(); ++i) {
+        both += runs[k].mask.data[i] && consensus.data[i];
+        sum += runs[k].mask.data[i] + consensus.data[i];
+      }
+      const double dice = sum ? 2.0 * static_cast<double>(both) / static_cast<double>(sum) : 0.0;
+      if (dice > best_overlap) best_overlap = dice, best = k;
+    }
+    out = std::move(runs[best]);
+    out.mask = std::move(consensus);
+  }
+  out.warnings.erase(std::remove_if(out.warnings.begin(), out.warnings.end(),
+                                    [](const std::string& w) { return w.rfind("the mandible touches the edge", 0) == 0; }),
+                     out.warnings.end());
+  out.voxels = out.mask.count();
+  if (out.voxels == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
+  out.volume_mm3 = static_cast<double>(out.voxels) * g.voxel_volume_mm3();
+  set_truncation(out);
+  return out;
 }
 
 Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const std::string& source) {
@@ -609,8 +766,7 @@ Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const s
   if (cc->GetObjectCount() > 1)
     r.warnings.push_back(source + ": the mandible label has " + std::to_string(cc->GetObjectCount()) +
                          " separate parts (kept all; fracture or segmentation gaps?)");
-  r.truncated = touches_border(r.mask);
-  if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
+  set_truncation(r);
   return r;
 }
 

@@ -25,6 +25,9 @@ struct Options {
   // Inputs finer than this (mm) are separated on a bin-averaged grid of about
   // this spacing; the surface is still placed at full resolution.
   double separation_spacing_mm = 0.6;
+  // Axes coarser than this (mm) are interpolated (trilinear) to it for the
+  // whole segmentation; the mask is brought back to the input grid.
+  double max_working_spacing_mm = 2.0;
 };
 
 struct Result {

@@ -203,6 +203,13 @@ TEST(EndToEnd, HeadsqNrrdFromTheIssueCompletes) {
   ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 -o " + out.string() + " -q", &err), 0) << err;
   const Value r = load(out / "results.json");
   EXPECT_EQ(r.at("input").at("kind").as_string(), "nrrd");
+  // 3.2 x 3.2 x 1.5 mm: segmented on a 2 mm working grid; an adult mandible
+  // with teeth is ~60-120 cm3 (the whole skull would be several hundred).
+  const double cm3 = r.at("segmentation").at("volume_mm3").as_number() / 1000;
+  RecordProperty("headsq_mandible_cm3", std::to_string(cm3));
+  EXPECT_GT(cm3, 50.0);
+  EXPECT_LT(cm3, 130.0);
+  EXPECT_GT(r.at("segmentation").at("separation_depth_mm").as_number(), 0.0);
   EXPECT_EQ(r.at("input").at("size_voxels")[2].as_number(), 93);
   // The file carries no anatomical orientation: the run must say so.
   bool warned = false;
