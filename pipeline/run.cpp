@@ -146,7 +146,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     stage("surface", 3);
 
     // 4. landmarks
-    S.landmarks = landmarks::detect(surf.mesh);
+    landmarks::Options lo;
+    if (seg.truncated) lo.scan_grid = &seg.mask.geom;  // landmarks at the cut are missing, not guessed
+    S.landmarks = landmarks::detect(surf.mesh, lo);
+    for (const auto& w : S.landmarks.warnings) S.warnings.push_back(w);
     for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
     stage("landmarks", 4);
 

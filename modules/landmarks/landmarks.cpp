@@ -1,64 +1,327 @@
 #include "landmarks/landmarks.h"
 
+#include <algorithm>
 #include <cmath>
-#include <functional>
 #include <limits>
+#include <queue>
+
+#include "reference/reference.h"
 
 namespace ms::landmarks {
+namespace {
 
-Result detect(const Mesh& mesh) {
-  Result r;
-  r.method = "extreme-vertex (thin)";
-  const auto& V = mesh.vertices;
-  if (V.empty()) return r;
-  Vec3 c{0, 0, 0}, lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30};
-  for (const auto& v : V) {
-    c = c + v;
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::min(lo[a], v[a]);
-      hi[a] = std::max(hi[a], v[a]);
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Vertex graph of the mesh (compressed rows), edge weights = lengths in mm.
+struct Graph {
+  std::vector<std::size_t> start;  // size n + 1
+  std::vector<int> nbr;
+  std::vector<double> len;
+};
+
+Graph build_graph(const Mesh& mesh) {
+  const std::size_t n = mesh.vertices.size();
+  std::vector<std::vector<int>> adj(n);
+  for (const auto& f : mesh.faces)
+    for (int e = 0; e < 3; ++e) {
+      const int a = f[e], b = f[(e + 1) % 3];
+      adj[a].push_back(b);
+      adj[b].push_back(a);
+    }
+  Graph g;
+  g.start.assign(n + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    auto& l = adj[i];
+    std::sort(l.begin(), l.end());
+    l.erase(std::unique(l.begin(), l.end()), l.end());
+    g.start[i + 1] = g.start[i] + l.size();
+  }
+  g.nbr.reserve(g.start[n]);
+  g.len.reserve(g.start[n]);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int j : adj[i]) {
+      g.nbr.push_back(j);
+      g.len.push_back(norm(mesh.vertices[i] - mesh.vertices[static_cast<std::size_t>(j)]));
+    }
+  return g;
+}
+
+// Edge-graph geodesic distances from source, up to radius (inf beyond).
+// When touched is given, it receives the vertices reached.
+void dijkstra(const Graph& g, int source, double radius, std::vector<double>& dist, std::vector<int>* touched = nullptr) {
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> q;
+  dist[static_cast<std::size_t>(source)] = 0;
+  q.push({0.0, source});
+  if (touched) touched->push_back(source);
+  while (!q.empty()) {
+    const auto [d, v] = q.top();
+    q.pop();
+    if (d > dist[static_cast<std::size_t>(v)]) continue;
+    for (std::size_t e = g.start[static_cast<std::size_t>(v)]; e < g.start[static_cast<std::size_t>(v) + 1]; ++e) {
+      const int w = g.nbr[e];
+      const double nd = d + g.len[e];
+      if (nd > radius || nd >= dist[static_cast<std::size_t>(w)]) continue;
+      if (touched && dist[static_cast<std::size_t>(w)] == kInf) touched->push_back(w);
+      dist[static_cast<std::size_t>(w)] = nd;
+      q.push({nd, w});
     }
   }
-  c = (1.0 / V.size()) * c;
-  const double width = hi[0] - lo[0];
+}
 
-  // argmax of score over vertices passing the filter; nullopt-like -1 if none.
-  auto argmax = [&](const std::function<bool(const Vec3&)>& keep, const std::function<double(const Vec3&)>& score) {
-    int best = -1;
-    double bs = -std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < V.size(); ++i)
-      if (keep(V[i]) && score(V[i]) > bs) {
-        bs = score(V[i]);
-        best = static_cast<int>(i);
+// Vertices within radius of source (geodesic), reusing a scratch buffer.
+std::vector<int> ball(const Graph& g, int source, double radius, std::vector<double>& scratch) {
+  std::vector<int> touched;
+  dijkstra(g, source, radius, scratch, &touched);
+  for (int v : touched) scratch[static_cast<std::size_t>(v)] = kInf;
+  return touched;
+}
+
+// Average geodesic distance from agd_samples farthest-point samples.
+std::vector<double> average_geodesic_distance(const Graph& g, std::size_t n, int samples) {
+  std::vector<double> agd(n, 0.0), mind(n, kInf), d(n);
+  int next = 0;
+  {  // start from the vertex farthest from vertex 0
+    std::fill(d.begin(), d.end(), kInf);
+    dijkstra(g, 0, kInf, d);
+    double far = -1;
+    for (std::size_t i = 0; i < n; ++i)
+      if (d[i] != kInf && d[i] > far) far = d[i], next = static_cast<int>(i);
+  }
+  int used = 0;
+  for (int s = 0; s < samples; ++s) {
+    std::fill(d.begin(), d.end(), kInf);
+    dijkstra(g, next, kInf, d);
+    ++used;
+    double far = -1;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (d[i] == kInf) continue;  // another component
+      agd[i] += d[i];
+      mind[i] = std::min(mind[i], d[i]);
+      if (mind[i] > far) far = mind[i], next = static_cast<int>(i);
+    }
+  }
+  for (double& a : agd) a /= std::max(1, used);
+  return agd;
+}
+
+// Geodesic extremities: vertices whose AGD is the largest within radius.
+std::vector<int> extremities(const Graph& g, const std::vector<double>& agd, double radius) {
+  const std::size_t n = agd.size();
+  std::vector<int> cand;
+  for (std::size_t v = 0; v < n; ++v) {
+    bool top = g.start[v + 1] > g.start[v];
+    for (std::size_t e = g.start[v]; e < g.start[v + 1] && top; ++e) top = agd[v] >= agd[static_cast<std::size_t>(g.nbr[e])];
+    if (top) cand.push_back(static_cast<int>(v));
+  }
+  std::sort(cand.begin(), cand.end(), [&](int a, int b) { return agd[static_cast<std::size_t>(a)] > agd[static_cast<std::size_t>(b)]; });
+  std::vector<double> scratch(n, kInf);
+  std::vector<int> out;
+  for (int c : cand) {
+    bool top = true;
+    for (int w : ball(g, c, radius, scratch))
+      if (agd[static_cast<std::size_t>(w)] > agd[static_cast<std::size_t>(c)]) {
+        top = false;
+        break;
       }
-    return best;
+    if (top) out.push_back(c);
+  }
+  return out;
+}
+
+struct P2 {
+  double a, h;  // antero-posterior (+posterior), supero-inferior (+superior)
+};
+
+// Convex hull (counter-clockwise in (a, h)), Andrew's monotone chain.
+std::vector<P2> hull(std::vector<P2> p) {
+  std::sort(p.begin(), p.end(), [](const P2& x, const P2& y) { return x.a < y.a || (x.a == y.a && x.h < y.h); });
+  if (p.size() < 3) return p;
+  auto cross2 = [](const P2& o, const P2& x, const P2& y) { return (x.a - o.a) * (y.h - o.h) - (x.h - o.h) * (y.a - o.a); };
+  std::vector<P2> H(2 * p.size());
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    while (k >= 2 && cross2(H[k - 2], H[k - 1], p[i]) <= 0) --k;
+    H[k++] = p[i];
+  }
+  for (std::size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
+    while (k >= t && cross2(H[k - 2], H[k - 1], p[i - 1]) <= 0) --k;
+    H[k++] = p[i - 1];
+  }
+  H.resize(k - 1);
+  return H;
+}
+
+// Among candidate vertices, those within tol of the best score (a flat top
+// must not be decided by vertex order): the one nearest their centroid.
+template <class Score>
+int plateau(const std::vector<Vec3>& V, const std::vector<int>& cand, Score score, double tol) {
+  double best = -kInf;
+  for (int v : cand) best = std::max(best, score(static_cast<std::size_t>(v)));
+  Vec3 c{0, 0, 0};
+  int cnt = 0;
+  for (int v : cand)
+    if (score(static_cast<std::size_t>(v)) >= best - tol) c = c + V[static_cast<std::size_t>(v)], ++cnt;
+  if (cnt == 0) return -1;
+  c = (1.0 / cnt) * c;
+  int out = -1;
+  double dmin = kInf;
+  for (int v : cand)
+    if (score(static_cast<std::size_t>(v)) >= best - tol && norm(V[static_cast<std::size_t>(v)] - c) < dmin)
+      dmin = norm(V[static_cast<std::size_t>(v)] - c), out = v;
+  return out;
+}
+
+}  // namespace
+
+Result detect(const Mesh& mesh, const Options& opt) {
+  Result r;
+  r.method = "geodesic extremities + symmetry-plane frame";
+  const auto& V = mesh.vertices;
+  const std::size_t n = V.size();
+  if (n < 100 || mesh.faces.empty()) {
+    for (const auto& name : landmark_names()) r.missing.push_back(name);
+    r.warnings.push_back("landmarks: the surface is too small");
+    return r;
+  }
+  Vec3 c{0, 0, 0};
+  for (const auto& v : V) c = c + v;
+  c = (1.0 / static_cast<double>(n)) * c;
+
+  // 1. Frame: the mandible's own symmetry plane, from the scan's sagittal
+  //    plane through the centroid (head pose within ~20 degrees).
+  reference::Options ro;
+  ro.icp_rounds = 8;
+  r.plane = reference::refine_plane_on_surface(mesh, Plane{c, Vec3{1, 0, 0}}, ro);
+  if (r.plane.normal[0] < 0) r.plane.normal = -1.0 * r.plane.normal;
+  r.plane.point = c - r.plane.signed_distance(c) * r.plane.normal;
+  Vec3 e_ml, e_ap, e_si;
+  reference::plane_frame(r.plane, e_ml, e_ap, e_si);
+  std::vector<double> U(n), A(n), H(n);
+  double umax = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 d = V[i] - r.plane.point;
+    U[i] = dot(d, e_ml);
+    A[i] = dot(d, e_ap);
+    H[i] = dot(d, e_si);
+    umax = std::max(umax, std::abs(U[i]));
+  }
+
+  // 2. Geodesic extremities (METHOD.md §2).
+  const Graph g = build_graph(mesh);
+  const std::vector<double> agd = average_geodesic_distance(g, n, opt.agd_samples);
+  const std::vector<int> ext = extremities(g, agd, opt.extremity_radius_mm);
+  for (int e : ext) r.extremities.push_back(V[static_cast<std::size_t>(e)]);
+  std::vector<double> scratch(n, kInf);
+  const double tol = 0.3;  // mm: plateau tolerance for extreme points
+  auto highest_near = [&](int seed) {
+    return plateau(V, ball(g, seed, opt.process_radius_mm, scratch), [&](std::size_t v) { return H[v]; }, tol);
   };
+
+  // 3. Per side: the condylar and coronoid processes are the two highest
+  //    extremities of the ramus, the condyle the posterior one.
   for (double s : {1.0, -1.0}) {
     const std::string suf = s > 0 ? "_L" : "_R";
-    auto side = [&](const Vec3& v) { return s * (v[0] - c[0]) > 0.15 * width; };
-    const int co = argmax([&](const Vec3& v) { return side(v) && v[1] > c[1]; }, [](const Vec3& v) { return v[2]; });
-    if (co < 0) continue;
-    r.landmarks.set("Co" + suf, V[co]);
-    const Vec3 cop = V[co];
-    const int cr = argmax([&](const Vec3& v) { return side(v) && v[1] < cop[1] - 12.0 && s * (v[0] - c[0]) > 0.25 * width; },
-                          [](const Vec3& v) { return v[2]; });
-    if (cr >= 0) r.landmarks.set("Cr" + suf, V[cr]);
-    const double ycut = cr >= 0 ? V[cr][1] : c[1];
-    const int go = argmax([&](const Vec3& v) { return side(v) && v[1] > ycut && v[2] < cop[2] - 25.0; },
-                          [](const Vec3& v) { return (v[1] - v[2]) / std::sqrt(2.0); });
-    if (go >= 0) r.landmarks.set("Go" + suf, V[go]);
+    auto on_side = [&](std::size_t v) { return s * U[v] > 0.35 * umax; };
+    std::vector<int> top;
+    for (int e : ext)
+      if (on_side(static_cast<std::size_t>(e))) top.push_back(e);
+    std::sort(top.begin(), top.end(), [&](int a, int b) { return H[static_cast<std::size_t>(a)] > H[static_cast<std::size_t>(b)]; });
+    int co = -1, cr = -1;
+    if (top.size() >= 2) {
+      const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[1]);
+      // Two processes: distinct antero-posteriorly, at a similar height.
+      if (std::abs(A[p] - A[q]) > 10.0 && std::abs(H[p] - H[q]) < 30.0) {
+        co = A[p] > A[q] ? top[0] : top[1];
+        cr = A[p] > A[q] ? top[1] : top[0];
+      } else {
+        co = top[0];
+      }
+    } else if (top.size() == 1) {
+      co = top[0];
+    }
+    if (co >= 0) r.landmarks.set("Co" + suf, V[static_cast<std::size_t>(highest_near(co))]);
+    if (cr >= 0) r.landmarks.set("Cr" + suf, V[static_cast<std::size_t>(highest_near(cr))]);
+
+    // Gonion: the bisector of the angle between the posterior ramus tangent
+    // and the inferior border tangent (both convex-hull edges of the side in
+    // the sagittal projection), extreme point along it.
+    std::vector<P2> pts;
+    std::vector<std::size_t> idx;
+    for (std::size_t v = 0; v < n; ++v)
+      if (on_side(v)) {
+        pts.push_back({A[v], H[v]});
+        idx.push_back(v);
+      }
+    const std::vector<P2> hl = hull(pts);
+    double best_post = 0, best_inf = 0;
+    P2 n_post{0, 0}, n_inf{0, 0};
+    for (std::size_t i = 0; i < hl.size(); ++i) {
+      const P2 &p = hl[i], &q = hl[(i + 1) % hl.size()];
+      const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
+      if (len < 1e-9) continue;
+      const P2 out{dh / len, -da / len};  // outward normal of a counter-clockwise hull
+      // The longest edge facing posterior / inferior (within 50 degrees).
+      if (out.a > std::cos(50 * M_PI / 180) && len > best_post) best_post = len, n_post = out;
+      if (-out.h > std::cos(50 * M_PI / 180) && len > best_inf) best_inf = len, n_inf = out;
+    }
+    if (best_post > 15 && best_inf > 15) {
+      const double bl = std::hypot(n_post.a + n_inf.a, n_post.h + n_inf.h);
+      const P2 b{(n_post.a + n_inf.a) / bl, (n_post.h + n_inf.h) / bl};
+      std::size_t go = idx[0];
+      double bs = -kInf;
+      for (std::size_t k = 0; k < idx.size(); ++k) {
+        const double sc = pts[k].a * b.a + pts[k].h * b.h;
+        if (sc > bs) bs = sc, go = idx[k];
+      }
+      r.landmarks.set("Go" + suf, V[go]);
+    }
   }
-  const int me = argmax([&](const Vec3& v) { return std::abs(v[0] - c[0]) < 0.15 * width; },
-                        [](const Vec3& v) { return -v[2]; });
-  if (me >= 0) {
-    r.landmarks.set("Me", V[me]);
-    const Vec3 mep = V[me];
-    const int pog = argmax([&](const Vec3& v) { return std::abs(v[0] - mep[0]) < 12.0 && v[2] < mep[2] + 20.0; },
-                           [](const Vec3& v) { return -v[1]; });
-    if (pog >= 0) r.landmarks.set("Pog", V[pog]);
+
+  // 4. Midline: menton = lowest point of the symphysis, pogonion = most
+  //    anterior point of the chin. The symphysis is the front of the
+  //    midline band (within 20 mm of its most anterior point), so that a
+  //    pitched head does not move menton back along the flat lower border.
+  {
+    std::vector<int> band;
+    double afront = kInf;
+    for (std::size_t v = 0; v < n; ++v)
+      if (std::abs(U[v]) < 0.12 * umax && A[v] < 0) {
+        band.push_back(static_cast<int>(v));
+        afront = std::min(afront, A[v]);
+      }
+    std::vector<int> sym;
+    for (int v : band)
+      if (A[static_cast<std::size_t>(v)] < afront + 20.0) sym.push_back(v);
+    const int me = plateau(V, sym, [&](std::size_t v) { return -H[v]; }, tol);
+    if (me >= 0) {
+      r.landmarks.set("Me", V[static_cast<std::size_t>(me)]);
+      const double hme = H[static_cast<std::size_t>(me)];
+      std::vector<int> chin;  // below the alveolar process and the incisors
+      for (int v : band)
+        if (H[static_cast<std::size_t>(v)] < hme + 18.0) chin.push_back(v);
+      const int pog = plateau(V, chin, [&](std::size_t v) { return -A[v]; }, tol);
+      if (pog >= 0) r.landmarks.set("Pog", V[static_cast<std::size_t>(pog)]);
+    }
   }
-  for (const auto& n : landmark_names())
-    if (!r.landmarks.has(n)) r.missing.push_back(n);
+
+  // 5. A landmark at the edge of a truncated scan is not the anatomical point.
+  if (opt.scan_grid) {
+    const Geometry& sg = *opt.scan_grid;
+    LandmarkSet kept;
+    for (const auto& [name, p] : r.landmarks.points) {
+      const Vec3 q = sg.lps_to_index(p);
+      bool edge = false;
+      for (int a = 0; a < 3; ++a) edge |= q[a] < 1.5 || q[a] > static_cast<double>(sg.size[a]) - 2.5;
+      if (edge)
+        r.warnings.push_back("landmarks: " + name + " lies at the edge of the scan (truncated): reported missing");
+      else
+        kept.set(name, p);
+    }
+    r.landmarks = kept;
+  }
+  for (const auto& name : landmark_names())
+    if (!r.landmarks.has(name)) r.missing.push_back(name);
   return r;
 }
 

@@ -75,6 +75,49 @@ void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si) {
   e_ap = cross(e_si, e_ml);
 }
 
+Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const Options& opt, double* rms_mm) {
+  double n[3] = {initial.normal[0], initial.normal[1], initial.normal[2]};
+  {
+    const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (double& x : n) x /= l;
+  }
+  double d[1] = {n[0] * initial.point[0] + n[1] * initial.point[1] + n[2] * initial.point[2]};
+  auto current_plane = [&] {
+    Plane pl;
+    pl.normal = normalized(Vec3{n[0], n[1], n[2]});
+    pl.point = d[0] * pl.normal;
+    return pl;
+  };
+  double rms = 0;
+  if (surface.faces.size() > 100) {
+    const geometry::ClosestPointIndex index(surface);
+    const auto fn = geometry::face_normals(surface);
+    const std::size_t step = std::max<std::size_t>(1, surface.vertices.size() / opt.icp_samples);
+    for (int round = 0; round < opt.icp_rounds; ++round) {
+      const Plane pl = current_plane();
+      ceres::Problem icp;
+      icp.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
+      icp.AddParameterBlock(d, 1);
+      for (std::size_t i = 0; i < surface.vertices.size(); i += step) {
+        const Vec3& v = surface.vertices[i];
+        const auto hit = index.closest(pl.reflect(v));
+        icp.AddResidualBlock(new ceres::AutoDiffCostFunction<MirrorResidual, 1, 3, 1>(
+                                 new MirrorResidual{v, hit.point, fn[static_cast<std::size_t>(hit.face)]}),
+                             new ceres::HuberLoss(opt.icp_huber_mm), n, d);
+      }
+      ceres::Solver::Summary s;
+      ceres::Solve(solver_options(30), &icp, &s);
+      rms = std::sqrt(2.0 * s.final_cost / std::max(1, s.num_residual_blocks));
+      const Plane np = current_plane();
+      const double moved = std::acos(std::min(1.0, std::abs(dot(np.normal, pl.normal)))) * 180 / 3.14159265358979 +
+                           std::abs(np.signed_distance(pl.point));
+      if (moved < 1e-3) break;
+    }
+  }
+  if (rms_mm) *rms_mm = rms;
+  return current_plane();
+}
+
 Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
   // ---- initial plane from the pairs ----
   Vec3 nsum{0, 0, 0};
@@ -149,30 +192,10 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
 
   // ---- stage 2: mirror-ICP on the surface ----
   if (opt.refine_on_surface && surface && surface->faces.size() > 100) {
-    const geometry::ClosestPointIndex index(*surface);
-    const auto fn = geometry::face_normals(*surface);
-    const std::size_t step = std::max<std::size_t>(1, surface->vertices.size() / opt.icp_samples);
     double rms = 0;
-    for (int round = 0; round < opt.icp_rounds; ++round) {
-      const Plane pl = current_plane();
-      ceres::Problem icp;
-      icp.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
-      icp.AddParameterBlock(d, 1);
-      for (std::size_t i = 0; i < surface->vertices.size(); i += step) {
-        const Vec3& v = surface->vertices[i];
-        const auto hit = index.closest(pl.reflect(v));
-        icp.AddResidualBlock(new ceres::AutoDiffCostFunction<MirrorResidual, 1, 3, 1>(
-                                 new MirrorResidual{v, hit.point, fn[static_cast<std::size_t>(hit.face)]}),
-                             new ceres::HuberLoss(opt.icp_huber_mm), n, d);
-      }
-      ceres::Solver::Summary s;
-      ceres::Solve(solver_options(30), &icp, &s);
-      rms = std::sqrt(2.0 * s.final_cost / std::max(1, s.num_residual_blocks));
-      const Plane np = current_plane();
-      const double moved = std::acos(std::min(1.0, std::abs(dot(np.normal, pl.normal)))) * 180 / 3.14159265358979 +
-                           std::abs(np.signed_distance(pl.point));
-      if (moved < 1e-3) break;
-    }
+    const Plane refined = refine_plane_on_surface(*surface, current_plane(), opt, &rms);
+    for (int a = 0; a < 3; ++a) n[a] = refined.normal[a];
+    d[0] = dot(refined.normal, refined.point);
     res.surface_rms_mm = rms;
     // Re-solve the symmetric configuration for the refined plane (plane fixed).
     ceres::Problem cfg;

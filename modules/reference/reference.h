@@ -36,6 +36,11 @@ struct Result {
 // Needs at least one bilateral pair; throws ms::Error(GeometryFailed) otherwise.
 Result fit(const LandmarkSet& detected, const Mesh* surface, const Options& options = {});
 
+// Stage 2 alone: mirror-ICP of surface about a plane, from initial (converges
+// from about 20 degrees off). rms_mm (optional): final point-to-plane RMS.
+Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const Options& options = {},
+                              double* rms_mm = nullptr);
+
 // Orthonormal frame of a symmetry plane: e_ml = normal, e_si = superior
 // projected into the plane, e_ap = e_si x e_ml (posterior).
 void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si);

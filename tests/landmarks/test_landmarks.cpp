@@ -1,0 +1,120 @@
+// Landmark detection on the phantom matrix (issue D): ground-truth mandible
+// masks of posed, asymmetric and mirrored phantoms -> surface -> detector,
+// errors against the phantom's analytic landmarks.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <string>
+
+#include "landmarks/landmarks.h"
+#include "phantom/phantom.h"
+#include "surface/surface.h"
+
+namespace {
+
+using ms::Vec3;
+using ms::operator-;
+
+struct Case {
+  const char* name;
+  double yaw, pitch, roll;
+  bool mirror;
+  double ramus_L;  // mm
+  double spacing;
+};
+
+std::ostream& operator<<(std::ostream& o, const Case& c) { return o << c.name; }
+
+// Errors of one case; also accumulated for the matrix summary.
+std::map<std::string, std::vector<double>>& all_errors() {
+  static std::map<std::string, std::vector<double>> e;
+  return e;
+}
+
+class LandmarkMatrix : public ::testing::TestWithParam<Case> {};
+
+TEST_P(LandmarkMatrix, LabelsEveryLandmarkOnTheRightSideNearTheTruth) {
+  const Case& c = GetParam();
+  ms::phantom::PhantomParams p;
+  p.spacing = {c.spacing, c.spacing, c.spacing};
+  p.fov_mm = {150, 140, 130};
+  p.yaw_deg = c.yaw;
+  p.pitch_deg = c.pitch;
+  p.roll_deg = c.roll;
+  p.mirror = c.mirror;
+  p.side[0].ramus_height_mm = c.ramus_L;
+  p.occlusal_gap_mm = 2;
+  p.noise_hu = 0;
+  const auto ph = ms::phantom::generate(p);
+  const auto surf = ms::surface::mesh_from_mask(ph.mandible);
+  const auto r = ms::landmarks::detect(surf.mesh);
+  EXPECT_TRUE(r.missing.empty()) << r.missing.size() << " missing";
+  std::string line;
+  for (const auto& name : ms::landmark_names()) {
+    const Vec3* got = r.landmarks.find(name);
+    const Vec3* want = ph.landmarks.find(name);
+    ASSERT_NE(want, nullptr) << name;
+    if (!got) continue;
+    const double e = ms::norm(*got - *want);
+    all_errors()[name.substr(0, 2)].push_back(e);
+    char buf[48];
+    std::snprintf(buf, sizeof buf, " %s %.1f", name.c_str(), e);
+    if (std::getenv("LM_VEC")) std::printf("  %s d = %.1f %.1f %.1f\n", name.c_str(), (*got)[0] - (*want)[0], (*got)[1] - (*want)[1], (*got)[2] - (*want)[2]);
+    line += buf;
+    // Side: bilateral labels on the patient's side of the true plane.
+    if (name.size() > 2 && name[2] == '_') {
+      const double side = ms::dot(*got - ph.plane.point, ph.plane.normal);
+      EXPECT_GT(name[3] == 'L' ? side : -side, 10.0) << name << " on the wrong side";
+    }
+    // Yaw and roll are corrected by the mandible's own symmetry plane; pitch
+    // is not (docs/landmarks.md): there only the identity of the point is
+    // checked (a wrong process or side is 25 mm or more away).
+    const bool pitched = std::abs(c.pitch) > 5;
+    const double tol = pitched ? 12.0 : name.rfind("Go", 0) == 0 ? 5.0 : 2.5;
+    EXPECT_LT(e, tol) << name;
+  }
+  std::printf("%s:%s\n", c.name, line.c_str());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Phantoms, LandmarkMatrix,
+    ::testing::Values(Case{"neutral", 0, 0, 0, false, 0, 1.0}, Case{"yaw_p20", 20, 0, 0, false, 0, 1.0},
+                      Case{"yaw_m20", -20, 0, 0, false, 0, 1.0}, Case{"pitch_p20", 0, 20, 0, false, 0, 1.0},
+                      Case{"pitch_m20", 0, -20, 0, false, 0, 1.0}, Case{"roll_p20", 0, 0, 20, false, 0, 1.0},
+                      Case{"roll_m20", 0, 0, -20, false, 0, 1.0}, Case{"combined", 12, -10, 8, false, 0, 1.0},
+                      Case{"ramusL4", 0, 0, 0, false, 4, 1.0}, Case{"ramusL4_mirror", 0, 0, 0, true, 4, 1.0},
+                      Case{"ramusL6_posed_mirror", -10, 8, -6, true, 6, 1.0}, Case{"fine_0_8mm", 5, 5, 5, false, 2, 0.8}),
+    [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
+
+}  // namespace
+
+namespace {
+
+// A scan whose upper edge cuts the condyles: Co is reported missing rather
+// than placed on the cut, while the chin landmarks are still found.
+TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
+  ms::phantom::PhantomParams p;
+  p.spacing = {1, 1, 1};
+  p.fov_mm = {150, 140, 130};
+  p.shift_mm = {0, 0, 52};  // head moved up: the grid's top cuts through the condylar necks
+  p.noise_hu = 0;
+  const auto ph = ms::phantom::generate(p);
+  const auto surf = ms::surface::mesh_from_mask(ph.mandible);
+  ms::landmarks::Options o;
+  o.scan_grid = &ph.mandible.geom;
+  const auto r = ms::landmarks::detect(surf.mesh, o);
+  EXPECT_FALSE(r.landmarks.has("Co_L"));
+  EXPECT_FALSE(r.landmarks.has("Co_R"));
+  EXPECT_TRUE(r.landmarks.has("Me"));
+  EXPECT_TRUE(r.landmarks.has("Pog"));
+  bool warned = false;
+  for (const auto& w : r.warnings) warned |= w.find("edge of the scan") != std::string::npos;
+  EXPECT_TRUE(warned);
+  // Without the scan grid the detector cannot know, and places them.
+  EXPECT_TRUE(ms::landmarks::detect(surf.mesh).landmarks.has("Co_L"));
+}
+
+}  // namespace
