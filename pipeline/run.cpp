@@ -43,6 +43,8 @@ const cli::CommandSpec& run_spec() {
        {"mask", "FILE", "use this segmentation instead of the automatic one (label map in any ITK format)", ""},
        {"label", "N", "with --mask: the mandible's label (TotalSegmentator craniofacial_structures: 1)", "the only label"},
        {"target-faces", "N", "decimate the surface above this many triangles", "60000"},
+       {"edge-length", "MM", "isotropic remeshing edge length (0 = no CGAL repair/remeshing)", "1"},
+       {"close-handles", "MM", "closing radius before meshing, removes handles such as teeth in contact (0 = none)", "0"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
        {"no-figures", "", "do not write QC figures", ""},
        {"quiet", "", "print nothing but errors", ""},
@@ -140,9 +142,18 @@ int run_command(const cli::Args& args, const std::string& command_line) {
 
     // 3. surface
     mo.target_faces = static_cast<std::size_t>(args.number("target-faces", static_cast<double>(mo.target_faces)));
+    mo.target_edge_mm = args.number("edge-length", mo.target_edge_mm);
+    mo.close_handles_mm = args.number("close-handles", mo.close_handles_mm);
+    if (mo.target_edge_mm < 0 || mo.close_handles_mm < 0 || mo.close_handles_mm > 10)
+      throw Error(ExitCode::Usage, "--edge-length must be >= 0 and --close-handles within [0, 10] mm");
     surf = surface::mesh_from_mask(seg.mask, mo);
     S.mesh = surf.stats;
     if (!surf.stats.closed) S.warnings.push_back("surface: the mesh is not closed; distances near holes are unreliable");
+    if (surf.stats.genus > 0)
+      S.warnings.push_back("surface: genus " + std::to_string(surf.stats.genus) +
+                           " (handles, e.g. teeth in contact or canals); geodesic distances may shortcut through them (--close-handles)");
+    if (surf.repair.self_intersections_after > 0)
+      S.warnings.push_back("surface: " + std::to_string(surf.repair.self_intersections_after) + " self-intersecting triangle pairs remain");
     stage("surface", 3);
 
     // 4. landmarks

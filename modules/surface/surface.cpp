@@ -5,6 +5,8 @@
 #include <vtkDoubleArray.h>
 #include <vtkFlyingEdges3D.h>
 #include <vtkImageData.h>
+#include <vtkImageContinuousDilate3D.h>
+#include <vtkImageContinuousErode3D.h>
 #include <vtkImageGaussianSmooth.h>
 #include <vtkIntArray.h>
 #include <vtkPLYWriter.h>
@@ -109,7 +111,7 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
           }
         }
   if (hi[0] < 0) throw Error(ExitCode::GeometryFailed, "mandible mask is empty: no surface to build");
-  const long pad = 3;
+  const long pad = 3 + static_cast<long>(std::ceil(opt.close_handles_mm / std::min({g.spacing[0], g.spacing[1], g.spacing[2]})));
   int dims[3];
   for (int a = 0; a < 3; ++a) dims[a] = static_cast<int>(hi[a] - lo[a] + 1 + 2 * pad);
   auto img = Ptr<vtkImageData>::New();
@@ -127,6 +129,19 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
 
   auto smooth = Ptr<vtkImageGaussianSmooth>::New();
   smooth->SetInputData(img);
+  if (opt.close_handles_mm > 0) {
+    // Morphological closing (ellipsoidal kernel of this radius in mm): fills
+    // the narrow gaps that make handles, e.g. between teeth in contact.
+    int ks[3];
+    for (int a = 0; a < 3; ++a) ks[a] = 2 * static_cast<int>(std::floor(opt.close_handles_mm / g.spacing[a])) + 1;
+    auto dil = Ptr<vtkImageContinuousDilate3D>::New();
+    dil->SetInputData(img);
+    dil->SetKernelSize(ks[0], ks[1], ks[2]);
+    auto ero = Ptr<vtkImageContinuousErode3D>::New();
+    ero->SetInputConnection(dil->GetOutputPort());
+    ero->SetKernelSize(ks[0], ks[1], ks[2]);
+    smooth->SetInputConnection(ero->GetOutputPort());
+  }
   smooth->SetDimensionality(3);
   smooth->SetStandardDeviations(opt.smoothing_sigma_mm / g.spacing[0], opt.smoothing_sigma_mm / g.spacing[1],
                                 opt.smoothing_sigma_mm / g.spacing[2]);
@@ -164,6 +179,13 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   for (auto& v : r.mesh.vertices) {
     const Vec3 q{v[0] / g.spacing[0] + lo[0] - pad, v[1] / g.spacing[1] + lo[1] - pad, v[2] / g.spacing[2] + lo[2] - pad};
     v = g.index_to_lps(q[0], q[1], q[2]);
+  }
+  if (opt.target_edge_mm > 0) {
+    RepairOptions ro;
+    ro.target_edge_mm = opt.target_edge_mm;
+    ro.remesh_iterations = opt.remesh_iterations;
+    r.repair = repair_and_remesh(r.mesh, ro);
+    if (r.mesh.faces.empty()) throw Error(ExitCode::GeometryFailed, "surface repair left no triangles");
   }
   r.stats = measure(r.mesh);
   if (r.stats.volume_mm3 < 0) {  // mirror-handed grid or inward faces: flip to outward

@@ -1,7 +1,8 @@
-// Mask -> closed, outward-oriented triangle mesh in LPS mm (VTK), and mesh
-// writers. Thin first version: Gaussian-smoothed mask, flying edges at 0.5,
-// quadric decimation, largest component, orientation check. Issue D adds CGAL
-// repair and isotropic remeshing.
+// Mask -> closed, outward-oriented, isotropic triangle mesh in LPS mm, and
+// mesh writers (docs/surface.md): Gaussian-smoothed mask, flying edges at 0.5
+// (VTK), quadric decimation, then CGAL repair (soup repair, non-manifold
+// vertices, holes, self-intersections), isotropic remeshing and outward
+// orientation (repair.cpp).
 #pragma once
 
 #include <map>
@@ -14,8 +15,29 @@ namespace ms::surface {
 
 struct Options {
   double smoothing_sigma_mm = 0.6;  // Gaussian pre-smoothing of the binary mask
+  double close_handles_mm = 0;      // closing radius before meshing (0 = none)
   std::size_t target_faces = 60000; // decimate above this many triangles (0 = never)
+  double target_edge_mm = 1.0;      // isotropic remeshing edge length (0 = no CGAL repair/remeshing)
+  int remesh_iterations = 3;
 };
+
+struct RepairOptions {
+  double target_edge_mm = 1.0;  // 0: repair only
+  int remesh_iterations = 3;
+};
+
+struct RepairReport {
+  std::size_t non_manifold_vertices = 0;     // split apart
+  std::size_t components_removed = 0;        // small disconnected pieces dropped
+  std::size_t holes_filled = 0;
+  std::size_t self_intersections_before = 0; // intersecting face pairs found (then removed)
+  std::size_t self_intersections_after = 0;  // left in the final mesh
+  bool remeshed = false;
+};
+
+// CGAL repair and isotropic remeshing of a triangle mesh in place (LPS mm);
+// the result is outward-oriented when closed.
+RepairReport repair_and_remesh(Mesh& mesh, const RepairOptions& options = {});
 
 struct MeshStats {
   std::size_t vertices = 0, faces = 0;
@@ -28,6 +50,7 @@ struct MeshStats {
 struct Result {
   Mesh mesh;
   MeshStats stats;
+  RepairReport repair;
 };
 
 // Throws ms::Error(GeometryFailed) if the mask yields no surface.

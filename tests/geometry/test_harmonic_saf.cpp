@@ -91,7 +91,8 @@ ms::Mask shape_mask(const Shape& shape) {
 ms::Mesh shape_mesh(const Shape& shape) {
   ms::surface::Options opt;
   opt.smoothing_sigma_mm = 0.6;
-  opt.target_faces = 0;  // no decimation: it would break the mirror symmetry
+  opt.target_faces = 0;    // no decimation and no remeshing: they would break the
+  opt.target_edge_mm = 0;  // mirror symmetry of the triangulation
   auto r = ms::surface::mesh_from_mask(shape_mask(shape), opt);
   EXPECT_TRUE(r.stats.closed);
   EXPECT_EQ(r.stats.genus, 0);

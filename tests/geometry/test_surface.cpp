@@ -11,10 +11,13 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <vector>
 
 #include "core/error.h"
 #include "core/types.h"
+#include "phantom/phantom.h"
 
 namespace {
 
@@ -167,6 +170,7 @@ TEST(Surface, DecimationKeepsAClosedOutwardSurface) {
   const Ellipsoid e;
   ms::surface::Options opt;
   opt.target_faces = 3000;
+  opt.target_edge_mm = 0;  // decimation alone
   const auto r = ms::surface::mesh_from_mask(ellipsoid_mask(e, kSpacing, rotation(kAxis, kAngle)), opt);
   EXPECT_LE(r.stats.faces, 3000u * 11 / 10);
   EXPECT_TRUE(r.stats.closed);
@@ -174,6 +178,150 @@ TEST(Surface, DecimationKeepsAClosedOutwardSurface) {
   EXPECT_EQ(r.stats.genus, 0);
   EXPECT_NEAR(r.stats.volume_mm3, e.volume(), 0.03 * e.volume());
   EXPECT_GT(mean_outward_component(r.mesh, e.centre), 0);
+}
+
+// Mean edge length of a mesh.
+double mean_edge(const ms::Mesh& m) {
+  double s = 0;
+  for (const auto& f : m.faces)
+    for (int e = 0; e < 3; ++e) s += ms::distance(m.vertices[f[e]], m.vertices[f[(e + 1) % 3]]);
+  return s / (3.0 * static_cast<double>(m.faces.size()));
+}
+
+// Largest distance (mm) from a mesh vertex to the mask's boundary, the union
+// of the voxel faces between an inside and an outside voxel.
+double max_distance_to_mask_boundary(const ms::Mesh& mesh, const ms::Mask& mask) {
+  const ms::Geometry& g = mask.geom;
+  auto inside = [&](long i, long j, long k) {
+    return i >= 0 && j >= 0 && k >= 0 && i < long(g.size[0]) && j < long(g.size[1]) && k < long(g.size[2]) &&
+           mask.data[g.linear(std::size_t(i), std::size_t(j), std::size_t(k))] != 0;
+  };
+  double worst = 0;
+  for (const auto& v : mesh.vertices) {
+    const Vec3 q = g.lps_to_index(v);  // distances in index space scaled by spacing (the direction is a rotation)
+    double best = 1e30;
+    const long ci = std::lround(q[0]), cj = std::lround(q[1]), ck = std::lround(q[2]);
+    for (long k = ck - 3; k <= ck + 3; ++k)
+      for (long j = cj - 3; j <= cj + 3; ++j)
+        for (long i = ci - 3; i <= ci + 3; ++i) {
+          if (!inside(i, j, k)) continue;
+          const long c[3] = {i, j, k};
+          for (int a = 0; a < 3; ++a)
+            for (int sgn : {-1, 1}) {
+              long n[3] = {i, j, k};
+              n[a] += sgn;
+              if (inside(n[0], n[1], n[2])) continue;
+              // Face between voxel c and its neighbour along axis a.
+              double d2 = 0;
+              for (int b = 0; b < 3; ++b) {
+                double t;
+                if (b == a) {
+                  t = q[b] - (static_cast<double>(c[b]) + 0.5 * sgn);
+                } else {
+                  const double lo = static_cast<double>(c[b]) - 0.5, hi = static_cast<double>(c[b]) + 0.5;
+                  t = q[b] < lo ? lo - q[b] : q[b] > hi ? q[b] - hi : 0.0;
+                }
+                d2 += t * t * g.spacing[b] * g.spacing[b];
+              }
+              best = std::min(best, std::sqrt(d2));
+            }
+        }
+    worst = std::max(worst, best);
+  }
+  return worst;
+}
+
+TEST(Surface, RemeshedEllipsoidIsIsotropicAndStaysOnTheMask) {
+  const Ellipsoid e;
+  const ms::Mask mask = ellipsoid_mask(e, kSpacing, rotation(kAxis, kAngle));
+  for (double edge : {0.8, 1.5}) {
+    ms::surface::Options opt;
+    opt.target_edge_mm = edge;
+    const auto r = ms::surface::mesh_from_mask(mask, opt);
+    EXPECT_TRUE(r.repair.remeshed);
+    EXPECT_EQ(r.repair.self_intersections_after, 0u);
+    EXPECT_NEAR(mean_edge(r.mesh), edge, 0.25 * edge);
+    EXPECT_TRUE(r.stats.closed);
+    EXPECT_EQ(r.stats.genus, 0);
+    EXPECT_NEAR(r.stats.volume_mm3, e.volume(), 0.02 * e.volume());
+    EXPECT_LE(max_distance_to_mask_boundary(r.mesh, mask), *std::max_element(kSpacing.begin(), kSpacing.end()));
+  }
+}
+
+TEST(Surface, PhantomMandibleIsWatertightAndOnTheMask) {
+  ms::phantom::PhantomParams p;
+  p.spacing = {1.0, 1.0, 1.0};
+  p.fov_mm = {150, 140, 130};
+  p.yaw_deg = 7;
+  p.roll_deg = -4;
+  p.noise_hu = 0;
+  const auto ph = ms::phantom::generate(p);
+  const auto r = ms::surface::mesh_from_mask(ph.mandible);
+  const double mask_volume = static_cast<double>(ph.mandible.count()) * ph.mandible.geom.voxel_volume_mm3();
+  std::printf("mandible: %zu faces, volume %.0f mm3 (mask %.0f), genus %d, mean edge %.2f mm\n", r.stats.faces,
+              r.stats.volume_mm3, mask_volume, r.stats.genus, mean_edge(r.mesh));
+  EXPECT_TRUE(r.stats.closed);
+  EXPECT_TRUE(r.stats.manifold);
+  // The ground-truth teeth touch their neighbours: each contact closes a loop
+  // through the alveolar bone (a handle), so genus 0 needs --close-handles.
+  EXPECT_GE(r.stats.genus, 0);
+  EXPECT_EQ(r.repair.self_intersections_after, 0u);
+  EXPECT_NEAR(r.stats.volume_mm3, mask_volume, 0.02 * mask_volume);
+  EXPECT_NEAR(mean_edge(r.mesh), 1.0, 0.25);
+  const double worst = max_distance_to_mask_boundary(r.mesh, ph.mandible);
+  std::printf("largest vertex distance to the mask boundary: %.2f mm\n", worst);
+  EXPECT_LE(worst, 1.0);  // one voxel
+
+  ms::surface::Options closed_opt;
+  closed_opt.close_handles_mm = 2.0;
+  const auto c = ms::surface::mesh_from_mask(ph.mandible, closed_opt);
+  std::printf("closed 2 mm: genus %d, volume %.0f mm3, largest distance %.2f mm\n", c.stats.genus, c.stats.volume_mm3,
+              max_distance_to_mask_boundary(c.mesh, ph.mandible));
+  EXPECT_EQ(c.stats.genus, 0);
+  EXPECT_NEAR(c.stats.volume_mm3, mask_volume, 0.02 * mask_volume);
+}
+
+TEST(SurfaceRepair, FillsAHoleAndKeepsTheShape) {
+  const Ellipsoid e;
+  ms::surface::Options opt;
+  opt.target_edge_mm = 0;
+  auto r = ms::surface::mesh_from_mask(ellipsoid_mask(e, kSpacing, rotation(kAxis, kAngle)), opt);
+  const double volume = r.stats.volume_mm3;
+  // Punch a hole: drop every face touching the vertices within 3 mm of one.
+  const Vec3 centre = r.mesh.vertices[0];
+  ms::Mesh holed;
+  holed.vertices = r.mesh.vertices;
+  for (const auto& f : r.mesh.faces) {
+    bool near = false;
+    for (int k = 0; k < 3; ++k) near |= ms::distance(r.mesh.vertices[f[k]], centre) < 3.0;
+    if (!near) holed.faces.push_back(f);
+  }
+  ASSERT_LT(holed.faces.size(), r.mesh.faces.size());
+  ASSERT_FALSE(ms::surface::measure(holed).closed);
+  ms::surface::RepairOptions ro;
+  ro.target_edge_mm = 0;
+  const auto rep = ms::surface::repair_and_remesh(holed, ro);
+  EXPECT_EQ(rep.holes_filled, 1u);
+  const auto st = ms::surface::measure(holed);
+  EXPECT_TRUE(st.closed);
+  EXPECT_EQ(st.genus, 0);
+  EXPECT_NEAR(st.volume_mm3, volume, 0.01 * volume);
+}
+
+TEST(SurfaceRepair, SplitsANonManifoldVertexAndKeepsTheLargestPart) {
+  // Two tetrahedra sharing one vertex (a bow tie): non-manifold at the apex.
+  ms::Mesh m;
+  m.vertices = {{0, 0, 0}, {4, 0, 0}, {0, 4, 0}, {0, 0, 4}, {-1, 0, 0}, {0, -1, 0}, {0, 0, -1}};
+  m.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}, {0, 4, 5}, {0, 6, 4}, {0, 5, 6}, {4, 6, 5}};
+  ms::surface::RepairOptions ro;
+  ro.target_edge_mm = 0;
+  const auto rep = ms::surface::repair_and_remesh(m, ro);
+  EXPECT_GE(rep.non_manifold_vertices, 1u);
+  EXPECT_EQ(rep.components_removed, 1u);
+  const auto st = ms::surface::measure(m);
+  EXPECT_TRUE(st.closed);
+  EXPECT_TRUE(st.manifold);
+  EXPECT_NEAR(st.volume_mm3, 64.0 / 6.0, 1e-9);  // the large tetrahedron, outward
 }
 
 TEST(Surface, EmptyMaskThrows) {

@@ -1,0 +1,112 @@
+// CGAL side of the surface stage: polygon-soup repair, hole filling,
+// self-intersection removal, isotropic remeshing, outward orientation
+// (docs/surface.md). No VTK or ITK headers here.
+#include "surface/surface.h"
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/remesh.h>
+#include <CGAL/Polygon_mesh_processing/repair.h>
+#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/repair_self_intersections.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <array>
+#include <iterator>
+#include <vector>
+
+namespace ms::surface {
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using SM = CGAL::Surface_mesh<K::Point_3>;
+namespace PMP = CGAL::Polygon_mesh_processing;
+
+std::size_t count_self_intersections(const SM& sm) {
+  std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
+  PMP::self_intersections<CGAL::Parallel_if_available_tag>(faces(sm), sm, std::back_inserter(pairs));
+  return pairs.size();
+}
+
+// Fills every hole (border cycle) with a refined, faired patch.
+std::size_t fill_holes(SM& sm) {
+  std::vector<SM::Halfedge_index> borders;
+  PMP::extract_boundary_cycles(sm, std::back_inserter(borders));
+  for (auto h : borders) {
+    std::vector<SM::Face_index> patch_faces;
+    std::vector<SM::Vertex_index> patch_vertices;
+    PMP::triangulate_refine_and_fair_hole(sm, h, std::back_inserter(patch_faces), std::back_inserter(patch_vertices));
+  }
+  return borders.size();
+}
+
+}  // namespace
+
+RepairReport repair_and_remesh(Mesh& mesh, const RepairOptions& opt) {
+  RepairReport rep;
+  std::vector<K::Point_3> points;
+  points.reserve(mesh.vertices.size());
+  for (const auto& v : mesh.vertices) points.emplace_back(v[0], v[1], v[2]);
+  std::vector<std::array<std::size_t, 3>> polygons;
+  polygons.reserve(mesh.faces.size());
+  for (const auto& f : mesh.faces)
+    polygons.push_back({static_cast<std::size_t>(f[0]), static_cast<std::size_t>(f[1]), static_cast<std::size_t>(f[2])});
+
+  // Soup repair: duplicate points and polygons, degenerate triangles; a
+  // consistent orientation (non-manifold vertices are split apart).
+  PMP::repair_polygon_soup(points, polygons);
+  const std::size_t before = points.size();
+  if (!PMP::orient_polygon_soup(points, polygons)) rep.non_manifold_vertices = points.size() - before;
+  SM sm;
+  PMP::polygon_soup_to_polygon_mesh(points, polygons, sm);
+  rep.non_manifold_vertices += PMP::duplicate_non_manifold_vertices(sm);
+  rep.components_removed = PMP::keep_largest_connected_components(sm, 1);
+  sm.collect_garbage();
+
+  rep.holes_filled = fill_holes(sm);
+  rep.self_intersections_before = count_self_intersections(sm);
+  if (rep.self_intersections_before > 0) CGAL::Polygon_mesh_processing::experimental::remove_self_intersections(sm);
+
+  if (opt.target_edge_mm > 0) {
+    PMP::isotropic_remeshing(faces(sm), opt.target_edge_mm, sm,
+                             CGAL::parameters::number_of_iterations(opt.remesh_iterations).number_of_relaxation_steps(1));
+    sm.collect_garbage();
+    rep.remeshed = true;
+    if (!CGAL::is_closed(sm)) rep.holes_filled += fill_holes(sm);
+    const std::size_t after = count_self_intersections(sm);
+    if (after > 0) {
+      CGAL::Polygon_mesh_processing::experimental::remove_self_intersections(sm);
+      rep.holes_filled += fill_holes(sm);
+    }
+  }
+  rep.self_intersections_after = count_self_intersections(sm);
+  if (CGAL::is_closed(sm)) PMP::orient_to_bound_a_volume(sm);  // outward
+
+  Mesh out;
+  out.vertices.reserve(sm.number_of_vertices());
+  std::vector<int> id(sm.num_vertices(), -1);
+  for (auto v : sm.vertices()) {
+    id[v.idx()] = static_cast<int>(out.vertices.size());
+    const auto& p = sm.point(v);
+    out.vertices.push_back({p.x(), p.y(), p.z()});
+  }
+  out.faces.reserve(sm.number_of_faces());
+  for (auto f : sm.faces()) {
+    std::array<int, 3> t{};
+    int k = 0;
+    for (auto v : CGAL::vertices_around_face(sm.halfedge(f), sm)) {
+      if (k < 3) t[static_cast<std::size_t>(k)] = id[v.idx()];
+      ++k;
+    }
+    if (k == 3) out.faces.push_back(t);
+  }
+  mesh = std::move(out);
+  return rep;
+}
+
+}  // namespace ms::surface
