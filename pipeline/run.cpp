@@ -171,7 +171,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
 
     // 6. asymmetry
     regions = asymmetry::assign_regions(surf.mesh, S.landmarks.landmarks);
-    S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions);
+    S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions, &S.landmarks.landmarks);
     sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
     S.saf = asymmetry::compute_saf(surf.mesh, S.landmarks.landmarks, S.reference.plane, sao);
     if (!S.saf.skipped.empty())

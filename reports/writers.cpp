@@ -53,6 +53,8 @@ json::Value stats_json(const asymmetry::DistanceStats& s, bool full) {
   o["rms_mm"] = s.rms;
   o["p95_mm"] = s.p95;
   o["max_mm"] = s.max;
+  o["max_outward_mm"] = s.max_outward;
+  o["max_inward_mm"] = s.max_inward;
   if (full) {
     o["pct_area_over_1mm"] = s.pct_area_over_1mm;
     o["pct_area_over_2mm"] = s.pct_area_over_2mm;
@@ -188,6 +190,8 @@ json::Value results_json(const RunSummary& s) {
   mir = stats_json(s.mirror.overall, true);
   mir["regions"] = Value::object();
   for (const auto& [n, st] : s.mirror.regions) mir["regions"][n] = stats_json(st, false);
+  mir["at_landmarks_mm"] = Value::object();
+  for (const auto& [n, v] : s.mirror.at_landmarks) mir["at_landmarks_mm"][n] = v;
 
   auto& bil = root["scores"]["bilateral"];
   bil = Value::object();

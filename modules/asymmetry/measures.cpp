@@ -66,6 +66,8 @@ DistanceStats distance_stats(const std::vector<double>& d, const std::vector<dou
     s.signed_mean += w[i] * d[i];
     s.rms += w[i] * d[i] * d[i];
     s.max = std::max(s.max, a);
+    s.max_outward = std::max(s.max_outward, d[i]);
+    s.max_inward = std::max(s.max_inward, -d[i]);
     if (a > 1.0) s.pct_area_over_1mm += w[i];
     if (a > 2.0) s.pct_area_over_2mm += w[i];
     absw.emplace_back(a, w[i]);
@@ -88,7 +90,7 @@ DistanceStats distance_stats(const std::vector<double>& d, const std::vector<dou
   return s;
 }
 
-MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions& regions) {
+MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions& regions, const LandmarkSet* landmarks) {
   MirrorResult r;
   const geometry::ClosestPointIndex index(mesh);
   const auto fn = geometry::face_normals(mesh);
@@ -105,6 +107,11 @@ MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions
       if (regions.label[i] == static_cast<int>(k)) d.push_back(r.per_vertex[i]), ww.push_back(w[i]);
     r.regions[regions.names[k]] = distance_stats(d, ww);
   }
+  if (landmarks)
+    for (const auto& [name, p] : landmarks->points) {
+      const int v = geometry::nearest_vertex(mesh, p);
+      if (v >= 0) r.at_landmarks[name] = r.per_vertex[static_cast<std::size_t>(v)];
+    }
   return r;
 }
 

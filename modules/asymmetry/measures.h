@@ -24,7 +24,8 @@ Regions assign_regions(const Mesh& mesh, const LandmarkSet& landmarks);
 std::vector<double> vertex_areas(const Mesh& mesh);
 
 struct DistanceStats {
-  double mean_abs = 0, signed_mean = 0, rms = 0, p95 = 0, max = 0;
+  double mean_abs = 0, signed_mean = 0, rms = 0, p95 = 0, max = 0;  // max of |d|
+  double max_outward = 0, max_inward = 0;  // largest d > 0 (bulging beyond the mirror) and largest -d
   double pct_area_over_1mm = 0, pct_area_over_2mm = 0;
 };
 DistanceStats distance_stats(const std::vector<double>& d, const std::vector<double>& w);
@@ -33,8 +34,12 @@ struct MirrorResult {
   std::vector<double> per_vertex;  // signed mm, + = this side bulges beyond its mirror
   DistanceStats overall;
   std::map<std::string, DistanceStats> regions;
+  // Signed distance at each landmark (its nearest vertex): which side bulges,
+  // e.g. a condylion above its mirror image is > 0 on that side.
+  std::map<std::string, double> at_landmarks;
 };
-MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions& regions);
+MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions& regions,
+                             const LandmarkSet* landmarks = nullptr);
 
 // Area-weighted mean of a per-vertex value in each region.
 std::map<std::string, double> regional_means(const std::vector<double>& values, const std::vector<double>& areas,

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <queue>
+#include <array>
 
 #include "reference/reference.h"
 
@@ -172,6 +173,60 @@ int plateau(const std::vector<Vec3>& V, const std::vector<int>& cand, Score scor
   return out;
 }
 
+// Solves the n x n system M x = y (Gaussian elimination, partial pivoting).
+template <int N>
+bool solve(std::array<std::array<double, N + 1>, N> m, std::array<double, N>& x) {
+  for (int c = 0; c < N; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < N; ++r)
+      if (std::abs(m[r][c]) > std::abs(m[piv][c])) piv = r;
+    if (std::abs(m[piv][c]) < 1e-12) return false;
+    std::swap(m[c], m[piv]);
+    for (int r = 0; r < N; ++r) {
+      if (r == c) continue;
+      const double f = m[r][c] / m[c][c];
+      for (int k = c; k <= N; ++k) m[r][k] -= f * m[c][k];
+    }
+  }
+  for (int c = 0; c < N; ++c) x[c] = m[c][N] / m[c][c];
+  return true;
+}
+
+// Sub-voxel extreme point: around vertex top (the extreme of coordinate z in
+// direction sign), fits z = quadratic(x, y) to the vertices within radius
+// (least squares, local coordinates) and returns the fitted apex when it is a
+// true extremum inside the patch; otherwise the vertex itself. The staircase
+// of a voxel surface moves the extreme vertex by up to half a voxel; the fit
+// averages it out.
+Vec3 refine_extreme(const std::vector<Vec3>& V, int top, const Vec3& ex, const Vec3& ey, const Vec3& ez, double sign,
+                    double radius) {
+  const Vec3 o = V[static_cast<std::size_t>(top)];
+  std::array<std::array<double, 7>, 6> m{};
+  int cnt = 0;
+  for (const Vec3& p : V) {
+    const Vec3 d = p - o;
+    if (dot(d, d) > radius * radius) continue;
+    const double x = dot(d, ex), y = dot(d, ey), z = sign * dot(d, ez);
+    if (z < -radius) continue;  // the far side of a thin process
+    const double b[6] = {1, x, y, x * x, x * y, y * y};
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) m[r][c] += b[r] * b[c];
+      m[r][6] += b[r] * z;
+    }
+    ++cnt;
+  }
+  if (cnt < 12) return o;
+  std::array<double, 6> c{};
+  if (!solve<6>(m, c)) return o;
+  // Apex: gradient zero; a maximum of z (negative definite Hessian).
+  const double h11 = 2 * c[3], h12 = c[4], h22 = 2 * c[5], det = h11 * h22 - h12 * h12;
+  if (!(h11 < 0 && det > 0)) return o;
+  const double x = (-c[1] * h22 + c[2] * h12) / det, y = (-c[2] * h11 + c[1] * h12) / det;
+  if (x * x + y * y > 0.25 * radius * radius) return o;
+  const double z = c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y;
+  return o + x * ex + y * ey + (sign * z) * ez;
+}
+
 }  // namespace
 
 Result detect(const Mesh& mesh, const Options& opt) {
@@ -192,6 +247,7 @@ Result detect(const Mesh& mesh, const Options& opt) {
   //    plane through the centroid (head pose within ~20 degrees).
   reference::Options ro;
   ro.icp_rounds = 8;
+  ro.icp_cauchy_mm = 0;  // a frame for labelling: the Huber fit is enough
   r.plane = reference::refine_plane_on_surface(mesh, Plane{c, Vec3{1, 0, 0}}, ro);
   if (r.plane.normal[0] < 0) r.plane.normal = -1.0 * r.plane.normal;
   r.plane.point = c - r.plane.signed_distance(c) * r.plane.normal;
@@ -220,6 +276,13 @@ Result detect(const Mesh& mesh, const Options& opt) {
 
   // 3. Per side: the condylar and coronoid processes are the two highest
   //    extremities of the ramus, the condyle the posterior one.
+  struct GonialSide {
+    std::vector<P2> pts;
+    std::vector<std::size_t> idx;
+    P2 n_post{0, 0}, n_inf{0, 0};
+    bool ok = false;
+  };
+  GonialSide gonial[2];  // [0] left, [1] right
   for (double s : {1.0, -1.0}) {
     const std::string suf = s > 0 ? "_L" : "_R";
     auto on_side = [&](std::size_t v) { return s * U[v] > 0.35 * umax; };
@@ -240,41 +303,59 @@ Result detect(const Mesh& mesh, const Options& opt) {
     } else if (top.size() == 1) {
       co = top[0];
     }
-    if (co >= 0) r.landmarks.set("Co" + suf, V[static_cast<std::size_t>(highest_near(co))]);
-    if (cr >= 0) r.landmarks.set("Cr" + suf, V[static_cast<std::size_t>(highest_near(cr))]);
+    if (co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, highest_near(co), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
+    if (cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, highest_near(cr), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
 
-    // Gonion: the bisector of the angle between the posterior ramus tangent
-    // and the inferior border tangent (both convex-hull edges of the side in
-    // the sagittal projection), extreme point along it.
-    std::vector<P2> pts;
-    std::vector<std::size_t> idx;
+    // Gonion, first pass: the posterior ramus tangent and the inferior border
+    // tangent of this side (convex-hull edges of its sagittal projection).
+    GonialSide& gs = gonial[s > 0 ? 0 : 1];
     for (std::size_t v = 0; v < n; ++v)
       if (on_side(v)) {
-        pts.push_back({A[v], H[v]});
-        idx.push_back(v);
+        gs.pts.push_back({A[v], H[v]});
+        gs.idx.push_back(v);
       }
-    const std::vector<P2> hl = hull(pts);
+    const std::vector<P2> hl = hull(gs.pts);
     double best_post = 0, best_inf = 0;
-    P2 n_post{0, 0}, n_inf{0, 0};
     for (std::size_t i = 0; i < hl.size(); ++i) {
       const P2 &p = hl[i], &q = hl[(i + 1) % hl.size()];
       const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
       if (len < 1e-9) continue;
       const P2 out{dh / len, -da / len};  // outward normal of a counter-clockwise hull
       // The longest edge facing posterior / inferior (within 50 degrees).
-      if (out.a > std::cos(50 * M_PI / 180) && len > best_post) best_post = len, n_post = out;
-      if (-out.h > std::cos(50 * M_PI / 180) && len > best_inf) best_inf = len, n_inf = out;
+      if (out.a > std::cos(50 * M_PI / 180) && len > best_post) best_post = len, gs.n_post = out;
+      if (-out.h > std::cos(50 * M_PI / 180) && len > best_inf) best_inf = len, gs.n_inf = out;
     }
-    if (best_post > 15 && best_inf > 15) {
-      const double bl = std::hypot(n_post.a + n_inf.a, n_post.h + n_inf.h);
-      const P2 b{(n_post.a + n_inf.a) / bl, (n_post.h + n_inf.h) / bl};
-      std::size_t go = idx[0];
-      double bs = -kInf;
-      for (std::size_t k = 0; k < idx.size(); ++k) {
-        const double sc = pts[k].a * b.a + pts[k].h * b.h;
-        if (sc > bs) bs = sc, go = idx[k];
+    gs.ok = best_post > 15 && best_inf > 15;
+  }
+
+  // Gonion, second pass: the extreme point of each side along the bisector
+  // of the two tangents' outward normals. The bisector direction is averaged
+  // over both sides (in the plane frame they are mirror images), so a ramus
+  // that is only taller does not rotate its own bisector and move gonion
+  // along the angle: left and right gonion are measured the same way.
+  {
+    P2 b{0, 0};
+    int used = 0;
+    for (const GonialSide& gs : gonial)
+      if (gs.ok) {
+        const double bl = std::hypot(gs.n_post.a + gs.n_inf.a, gs.n_post.h + gs.n_inf.h);
+        b.a += (gs.n_post.a + gs.n_inf.a) / bl;
+        b.h += (gs.n_post.h + gs.n_inf.h) / bl;
+        ++used;
       }
-      r.landmarks.set("Go" + suf, V[go]);
+    const double bl = std::hypot(b.a, b.h);
+    for (int si = 0; si < 2 && used > 0 && bl > 1e-9; ++si) {
+      const GonialSide& gs = gonial[si];
+      if (!gs.ok) continue;
+      std::size_t go = gs.idx[0];
+      double bs = -kInf;
+      for (std::size_t k = 0; k < gs.idx.size(); ++k) {
+        const double sc = (gs.pts[k].a * b.a + gs.pts[k].h * b.h) / bl;
+        if (sc > bs) bs = sc, go = gs.idx[k];
+      }
+      const Vec3 bdir = normalized((b.a / bl) * e_ap + (b.h / bl) * e_si);
+      r.landmarks.set(si == 0 ? "Go_L" : "Go_R",
+                      refine_extreme(V, static_cast<int>(go), e_ml, cross(bdir, e_ml), bdir, 1.0, opt.apex_radius_mm));
     }
   }
 
@@ -295,13 +376,15 @@ Result detect(const Mesh& mesh, const Options& opt) {
       if (A[static_cast<std::size_t>(v)] < afront + 20.0) sym.push_back(v);
     const int me = plateau(V, sym, [&](std::size_t v) { return -H[v]; }, tol);
     if (me >= 0) {
+      // (the lower border is nearly flat antero-posteriorly: a quadratic
+      // apex there is ill-conditioned, so menton stays the plateau vertex)
       r.landmarks.set("Me", V[static_cast<std::size_t>(me)]);
       const double hme = H[static_cast<std::size_t>(me)];
       std::vector<int> chin;  // below the alveolar process and the incisors
       for (int v : band)
         if (H[static_cast<std::size_t>(v)] < hme + 18.0) chin.push_back(v);
       const int pog = plateau(V, chin, [&](std::size_t v) { return -A[v]; }, tol);
-      if (pog >= 0) r.landmarks.set("Pog", V[static_cast<std::size_t>(pog)]);
+      if (pog >= 0) r.landmarks.set("Pog", refine_extreme(V, pog, e_ml, e_si, e_ap, -1.0, opt.apex_radius_mm));
     }
   }
 

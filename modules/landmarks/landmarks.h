@@ -17,6 +17,7 @@ struct Options {
   int agd_samples = 24;             // farthest-point samples for the average geodesic distance
   double extremity_radius_mm = 15;  // an extremity is the AGD maximum within this geodesic radius
   double process_radius_mm = 10;    // Co / Cr: highest point within this geodesic radius of the extremity
+  double apex_radius_mm = 4;        // extreme points refined by a quadratic fit over this radius
   // When set, landmarks within 1.5 voxels of a face of this grid are reported
   // missing (the mandible is cut there: the extreme point is not in the scan).
   const Geometry* scan_grid = nullptr;

@@ -93,7 +93,11 @@ Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const O
     const geometry::ClosestPointIndex index(surface);
     const auto fn = geometry::face_normals(surface);
     const std::size_t step = std::max<std::size_t>(1, surface.vertices.size() / opt.icp_samples);
-    for (int round = 0; round < opt.icp_rounds; ++round) {
+    // Huber rounds converge from far; then redescending (Cauchy) rounds let
+    // the asymmetric part of the surface stop pulling on the plane.
+    const int total = opt.icp_rounds + (opt.icp_cauchy_mm > 0 ? opt.icp_rounds : 0);
+    for (int round = 0; round < total; ++round) {
+      const bool cauchy = round >= opt.icp_rounds;
       const Plane pl = current_plane();
       ceres::Problem icp;
       icp.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
@@ -101,17 +105,19 @@ Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const O
       for (std::size_t i = 0; i < surface.vertices.size(); i += step) {
         const Vec3& v = surface.vertices[i];
         const auto hit = index.closest(pl.reflect(v));
+        ceres::LossFunction* loss = cauchy ? static_cast<ceres::LossFunction*>(new ceres::CauchyLoss(opt.icp_cauchy_mm))
+                                           : static_cast<ceres::LossFunction*>(new ceres::HuberLoss(opt.icp_huber_mm));
         icp.AddResidualBlock(new ceres::AutoDiffCostFunction<MirrorResidual, 1, 3, 1>(
                                  new MirrorResidual{v, hit.point, fn[static_cast<std::size_t>(hit.face)]}),
-                             new ceres::HuberLoss(opt.icp_huber_mm), n, d);
+                             loss, n, d);
       }
       ceres::Solver::Summary s;
       ceres::Solve(solver_options(30), &icp, &s);
-      rms = std::sqrt(2.0 * s.final_cost / std::max(1, s.num_residual_blocks));
+      if (!cauchy) rms = std::sqrt(2.0 * s.final_cost / std::max(1, s.num_residual_blocks));  // Huber: ~squared
       const Plane np = current_plane();
       const double moved = std::acos(std::min(1.0, std::abs(dot(np.normal, pl.normal)))) * 180 / 3.14159265358979 +
                            std::abs(np.signed_distance(pl.point));
-      if (moved < 1e-3) break;
+      if (moved < 1e-3) round = std::max(round, cauchy ? total : opt.icp_rounds - 1);  // converged: next stage
     }
   }
   if (rms_mm) *rms_mm = rms;

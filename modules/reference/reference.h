@@ -20,6 +20,7 @@ struct Options {
   int icp_rounds = 5;
   std::size_t icp_samples = 4000;   // surface vertices used per round
   double icp_huber_mm = 1.0;
+  double icp_cauchy_mm = 0.25;      // scale of the redescending rounds after the Huber rounds (0 = none)
 };
 
 struct Result {
