@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <tuple>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,7 @@
 #include "core/error.h"
 #include "io/volume_io.h"
 #include "landmarks/landmarks.h"
+#include "reports/render.h"
 #include "pipeline/commands.h"
 #include "reference/reference.h"
 #include "reports/figures.h"
@@ -217,7 +219,32 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     reports::write_text_atomic((stage_dir / "symmetry_plane.mrk.json").string(),
                                reports::plane_markup(S.reference.plane, 120.0));
     std::vector<std::string> figures;
-    if (!args.has("no-figures")) figures = reports::write_qc_slices(scan.volume, seg.mask, (stage_dir / "qc").string());
+    std::vector<std::string> views;
+    std::string views_note;
+    if (!args.has("no-figures")) {
+      figures = reports::write_qc_slices(scan.volume, seg.mask, (stage_dir / "qc").string());
+      // 3D views: mirror distance on a fixed +-3 mm scale (comparable between
+      // scans), SAF map on 0..0.25 rad.
+      reports::ColourMap mirror_cm{"mirror distance (mm)", -3.0, 3.0, true};
+      reports::ColourMap saf_cm{"SAF asymmetry (rad)", 0.0, 0.25, false};
+      for (const auto& [name, values, cm] :
+           {std::make_tuple(std::string("view_mirror"), &S.mirror.per_vertex, mirror_cm),
+            std::make_tuple(std::string("view_saf"), &S.saf.per_vertex, saf_cm)}) {
+        const auto rv = reports::render_views(surf.mesh, *values, cm, S.landmarks.landmarks, S.reference.plane,
+                                              (stage_dir / "qc" / name).string());
+        if (!rv.error.empty()) {
+          views_note = rv.error;
+          break;
+        }
+        views.insert(views.end(), rv.files.begin(), rv.files.end());
+      }
+      if (!views_note.empty()) {
+        S.warnings.push_back("report: 3D views not rendered: " + views_note);
+        views.clear();
+      }
+    } else {
+      views_note = "--no-figures";
+    }
     S.timings_s.emplace_back("report", sw.lap());
     S.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
     // region legend for the VTP's integer region array
@@ -226,7 +253,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       for (std::size_t k = 0; k < regions.names.size(); ++k) legend << k << "=" << regions.names[k] << " ";
       S.parameters["vtp_region_labels"] = legend.str();
     }
-    reports::write_text_atomic((stage_dir / "report.html").string(), reports::report_html(S, figures));
+    reports::write_text_atomic((stage_dir / "report.html").string(), reports::report_html(S, figures, views, views_note));
     reports::write_text_atomic((stage_dir / "results.csv").string(), reports::csv_header() + reports::csv_row(S, "ok"));
     for (const auto& w : S.warnings) log << "warning: " << w << "\n";
     {

@@ -281,7 +281,8 @@ std::string csv_row(const RunSummary& s, const std::string& status) {
   return o.str();
 }
 
-std::string report_html(const RunSummary& s, const std::vector<std::string>& figures) {
+std::string report_html(const RunSummary& s, const std::vector<std::string>& figures, const std::vector<std::string>& views,
+                        const std::string& views_note) {
   const auto E = html_escape;
   std::ostringstream h;
   h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
@@ -295,7 +296,7 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}\n"
     << ".cards{display:flex;flex-wrap:wrap;gap:1em}.card{border:1px solid #dde3ec;border-radius:8px;padding:.8em 1.2em;"
        "min-width:200px}.card .v{font-size:1.8em;font-weight:600}.card .k{color:#5a6475;font-size:.9em}\n"
-    << "figure{display:inline-block;margin:.4em}figure img{max-width:340px;border:1px solid #dde3ec}"
+    << "figure{display:inline-block;margin:.4em}figure img{max-width:340px;border:1px solid #dde3ec}.views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views figure{margin:0}.views figure img{width:100%;max-width:none}"
        "figcaption{font-size:.85em;color:#5a6475}\n.muted{color:#5a6475;font-size:.9em}\n</style></head><body>\n";
   h << "<h1>Mandibular asymmetry report</h1>\n<p class=\"muted\">MandiSym " << E(s.tool_version) << " &middot; input "
     << E(s.scan.kind) << " &middot; series " << E(s.scan.series_uid.empty() ? "-" : s.scan.series_uid)
@@ -321,16 +322,36 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   h << "</div>\n<p class=\"muted\">Interpretation bands are not yet calibrated (see docs/method.md); compare "
        "against a cohort or a pre-operative scan.</p>\n";
 
+  auto embed = [&](const std::string& f, const std::string& caption) {
+    std::ifstream in(f, std::ios::binary);
+    std::stringstream buf;
+    buf << in.rdbuf();
+    h << "<figure><img alt=\"" << E(caption) << "\" src=\"data:image/png;base64," << base64(buf.str())
+      << "\"><figcaption>" << E(caption) << "</figcaption></figure>\n";
+  };
+  h << "<h2>3D views</h2>\n";
+  if (views.empty()) {
+    h << "<p class=\"muted\">3D views not rendered: " << E(views_note.empty() ? "disabled" : views_note) << "</p>\n";
+  } else {
+    h << "<p class=\"muted\">In the frame of the fitted symmetry plane (translucent sheet); landmarks in green. Mirror "
+         "distance: red where this side bulges beyond its mirror image, blue where it lies inside it.</p>\n";
+    std::string set;
+    for (const auto& f : views) {
+      const std::string stem = std::filesystem::path(f).stem().string();  // e.g. view_mirror_front
+      const std::string this_set = stem.substr(0, stem.rfind('_'));
+      if (this_set != set) {
+        if (!set.empty()) h << "</div>\n";
+        h << "<div class=\"views\">\n";
+        set = this_set;
+      }
+      embed(f, stem);
+    }
+    h << "</div>\n";
+  }
+
   if (!figures.empty()) {
     h << "<h2>Segmentation QC</h2>\n";
-    for (const auto& f : figures) {
-      std::ifstream in(f, std::ios::binary);
-      std::stringstream buf;
-      buf << in.rdbuf();
-      const std::string name = std::filesystem::path(f).stem().string();
-      h << "<figure><img alt=\"" << E(name) << "\" src=\"data:image/png;base64," << base64(buf.str())
-        << "\"><figcaption>" << E(name) << "</figcaption></figure>\n";
-    }
+    for (const auto& f : figures) embed(f, std::filesystem::path(f).stem().string());
   }
 
   h << "<h2>Landmarks (LPS mm)</h2>\n<table><tr><th>landmark</th><th>x (L)</th><th>y (P)</th><th>z (S)</th>"

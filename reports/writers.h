@@ -14,7 +14,10 @@ inline constexpr const char* kSchemaVersion = "1.0";
 json::Value results_json(const RunSummary& s);
 std::string landmarks_markup(const LandmarkSet& landmarks);   // Slicer Fiducial, LPS
 std::string plane_markup(const Plane& plane, double size_mm);  // Slicer Plane, LPS
-std::string report_html(const RunSummary& s, const std::vector<std::string>& figures);
+// figures: segmentation QC PNGs; views: 3D view PNGs (files named
+// <set>_<view>.png); views_note: why there are no 3D views (empty when there are).
+std::string report_html(const RunSummary& s, const std::vector<std::string>& figures,
+                        const std::vector<std::string>& views = {}, const std::string& views_note = "");
 std::string csv_header();
 std::string csv_row(const RunSummary& s, const std::string& status);
 
