@@ -49,6 +49,8 @@ const cli::CommandSpec& run_spec() {
        {"close-handles", "MM", "closing radius before meshing, removes handles such as teeth in contact (0 = none)", "0"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
        {"no-figures", "", "do not write QC figures", ""},
+       {"deidentify", "", "leave out of every output the DICOM strings that can identify a study: UIDs, dates, "
+                          "descriptions, the input path", ""},
        {"quiet", "", "print nothing but errors", ""},
        {"help", "", "show this help", ""}}};
   return s;
@@ -92,7 +94,11 @@ int run_command(const cli::Args& args, const std::string& command_line) {
 
   reports::RunSummary S;
   S.tool_version = version();
-  S.command_line = command_line;
+  const bool deidentify = args.has("deidentify");
+  // De-identified runs never record the input path (folder names often carry
+  // the patient's name) nor the command line that contains it.
+  const std::string logged_command = deidentify ? "mandisym run <input> --deidentify ..." : command_line;
+  S.command_line = logged_command;
   Stopwatch sw;
   auto stage = [&](const char* name, int k) {
     const double t = sw.lap();
@@ -109,6 +115,12 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   ro.orientation = args.get("orientation");
   io::LoadedScan scan = io::read_scan(input, ro);
   S.scan = scan.info;
+  if (deidentify) {
+    S.scan.path = "(removed)";
+    S.scan.series_uid.clear();
+    S.scan.study_date.clear();
+    S.scan.series_description.clear();
+  }
   S.grid = scan.volume.geom;
   for (const auto& w : scan.info.warnings) S.warnings.push_back("ingest: " + w);
   stage("ingest", 1);
@@ -253,6 +265,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       for (std::size_t k = 0; k < regions.names.size(); ++k) legend << k << "=" << regions.names[k] << " ";
       S.parameters["vtp_region_labels"] = legend.str();
     }
+    if (deidentify)  // warnings may name files under the input folder
+      for (auto& w : S.warnings)
+        for (std::size_t p = w.find(input); !input.empty() && p != std::string::npos; p = w.find(input, p))
+          w.replace(p, input.size(), "<input>");
     reports::write_text_atomic((stage_dir / "report.html").string(), reports::report_html(S, figures, views, views_note));
     reports::write_text_atomic((stage_dir / "results.csv").string(), reports::csv_header() + reports::csv_row(S, "ok"));
     for (const auto& w : S.warnings) log << "warning: " << w << "\n";
@@ -261,7 +277,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       std::snprintf(b, sizeof b, "total %.2f s", S.total_s);
       say(b);
     }
-    reports::write_text_atomic((stage_dir / "log.txt").string(), "mandisym " + S.tool_version + "\n" + command_line + "\n" + log.str());
+    reports::write_text_atomic((stage_dir / "log.txt").string(), "mandisym " + S.tool_version + "\n" + logged_command + "\n" + log.str());
     reports::write_text_atomic((stage_dir / "results.json").string(), reports::results_json(S).dump(2) + "\n");
     // Move into place: everything else first, results.json last (its presence
     // marks a complete run).

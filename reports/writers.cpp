@@ -301,6 +301,10 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   h << "<h1>Mandibular asymmetry report</h1>\n<p class=\"muted\">MandiSym " << E(s.tool_version) << " &middot; input "
     << E(s.scan.kind) << " &middot; series " << E(s.scan.series_uid.empty() ? "-" : s.scan.series_uid)
     << " &middot; study date " << E(s.scan.study_date.empty() ? "-" : s.scan.study_date) << "</p>\n";
+  if (!s.scan.series_description.empty() || !s.scan.manufacturer.empty())
+    h << "<p class=\"muted\">Series &ldquo;" << E(s.scan.series_description.empty() ? "-" : s.scan.series_description)
+      << "&rdquo; &middot; scanner " << E(s.scan.manufacturer.empty() ? "-" : s.scan.manufacturer) << ' '
+      << E(s.scan.model) << " &middot; kernel " << E(s.scan.kernel.empty() ? "-" : s.scan.kernel) << "</p>\n";
   h << "<p class=\"muted\">Grid " << s.grid.size[0] << " &times; " << s.grid.size[1] << " &times; " << s.grid.size[2]
     << " voxels, spacing " << fmt(s.grid.spacing[0]) << " &times; " << fmt(s.grid.spacing[1]) << " &times; "
     << fmt(s.grid.spacing[2]) << " mm. Pixel data SHA-256 <code>" << E(s.scan.pixel_sha256.substr(0, 16))

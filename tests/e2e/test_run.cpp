@@ -249,3 +249,56 @@ TEST(EndToEnd, PatientIdentityNeverReachesTheOutputs) {
   fs::remove_all(ph);
   fs::remove_all(out);
 }
+
+// Replaces every occurrence of `from` by `to` (same length) in the files of dir.
+void patch_files(const fs::path& dir, const std::string& from, const std::string& to) {
+  ASSERT_EQ(from.size(), to.size());
+  for (const auto& e : fs::directory_iterator(dir)) {
+    std::fstream f(e.path(), std::ios::in | std::ios::out | std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    std::string bytes = s.str();
+    for (std::size_t p = bytes.find(from); p != std::string::npos; p = bytes.find(from, p + 1)) bytes.replace(p, to.size(), to);
+    f.seekp(0);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+}
+
+std::string slurp_file(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+TEST(EndToEnd, DicomStringsAreEscapedAndDeidentifyRemovesThem) {
+  const fs::path ph = temp_dir("escape_ph"), out = temp_dir("escape_out"), anon = temp_dir("escape_anon");
+  ASSERT_EQ(run("phantom -o " + ph.string() + " --spacing 1 --fov 140,120,120 --occlusal-gap 3 --joint-space 3 --no-preview"), 0);
+  // Series description and manufacturer carrying markup (same byte lengths).
+  patch_files(ph / "dicom", "MandiSym synthetic head CT", "<script>alert(1)</script> ");
+  patch_files(ph / "dicom", "MandiSym", "A&\"B'<i>");
+  std::string err;
+  ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string() + " --no-figures -q", &err), 0) << err;
+  const std::string html = slurp_file(out / "report.html");
+  EXPECT_EQ(html.find("<script>alert(1)"), std::string::npos);
+  EXPECT_NE(html.find("&lt;script&gt;alert(1)&lt;/script&gt;"), std::string::npos);
+  EXPECT_EQ(html.find("A&\"B'<i>"), std::string::npos);
+  EXPECT_NE(html.find("A&amp;&quot;B&#39;&lt;i&gt;"), std::string::npos) << "manufacturer not shown escaped";
+  // results.json stays valid JSON with the raw strings inside.
+  const Value r = load(out / "results.json");
+  EXPECT_EQ(r.at("input").at("manufacturer").as_string(), "A&\"B'<i>");
+
+  // --deidentify: UIDs, dates, descriptions and the input path reach no output.
+  const std::string uid = r.at("input").at("series_uid").as_string();
+  ASSERT_FALSE(uid.empty());
+  ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + anon.string() + " --no-figures --deidentify -q", &err), 0) << err;
+  for (const auto& e : fs::recursive_directory_iterator(anon)) {
+    if (!e.is_regular_file()) continue;
+    const std::string s = slurp_file(e.path());
+    for (const std::string& secret : {uid, std::string("20260101"), std::string("alert(1)"), ph.string()})
+      EXPECT_EQ(s.find(secret), std::string::npos) << e.path() << " contains " << secret;
+  }
+  fs::remove_all(ph);
+  fs::remove_all(out);
+  fs::remove_all(anon);
+}
