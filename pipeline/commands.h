@@ -11,11 +11,13 @@ namespace ms::pipeline {
 const cli::CommandSpec& run_spec();
 const cli::CommandSpec& phantom_spec();
 const cli::CommandSpec& inspect_spec();
+const cli::CommandSpec& compare_spec();
 
 // Each returns the process exit code; errors are thrown as ms::Error.
 int run_command(const cli::Args& args, const std::string& command_line);
 int phantom_command(const cli::Args& args);
 int inspect_command(const cli::Args& args);
+int compare_command(const cli::Args& args);
 
 const char* version();
 

@@ -80,6 +80,14 @@ json::Value markup_node(const char* type) {
 
 }  // namespace
 
+std::string png_data_uri(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "";
+  std::stringstream buf;
+  buf << in.rdbuf();
+  return "data:image/png;base64," + base64(buf.str());
+}
+
 std::string html_escape(const std::string& s) {
   std::string o;
   o.reserve(s.size());

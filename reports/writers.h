@@ -21,6 +21,9 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
 std::string csv_header();
 std::string csv_row(const RunSummary& s, const std::string& status);
 
+// data: URI of a PNG file (for self-contained HTML); empty if unreadable.
+std::string png_data_uri(const std::string& path);
+
 // HTML-escapes &, <, >, ", '.
 std::string html_escape(const std::string& s);
 

@@ -1,6 +1,9 @@
 #include "reference/reference.h"
 
 #include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Dense>
 
 #include <cmath>
 
@@ -65,7 +68,102 @@ ceres::Solver::Options solver_options(int max_iterations) {
 const char* kPairs[3] = {"Co", "Cr", "Go"};
 const char* kMid[2] = {"Me", "Pog"};
 
+// Moving vertex, after the rigid motion, to the tangent plane of its match.
+struct RigidPointToPlane {
+  Vec3 v, c, nc;
+  template <class T>
+  bool operator()(const T* aa, const T* t, T* r) const {
+    const T p[3] = {T(v[0]), T(v[1]), T(v[2])};
+    T q[3];
+    ceres::AngleAxisRotatePoint(aa, p, q);
+    r[0] = (q[0] + t[0] - T(c[0])) * T(nc[0]) + (q[1] + t[1] - T(c[1])) * T(nc[1]) + (q[2] + t[2] - T(c[2])) * T(nc[2]);
+    return true;
+  }
+};
+
 }  // namespace
+
+Vec3 RigidTransform::apply(const Vec3& x) const {
+  return {R[0] * x[0] + R[1] * x[1] + R[2] * x[2] + t[0], R[3] * x[0] + R[4] * x[1] + R[5] * x[2] + t[1],
+          R[6] * x[0] + R[7] * x[1] + R[8] * x[2] + t[2]};
+}
+
+AlignResult align_rigid(const Mesh& moving, const Mesh& fixed, const LandmarkSet& lm_moving, const LandmarkSet& lm_fixed,
+                        int rounds, double cauchy_mm) {
+  AlignResult res;
+  // Initial guess: Kabsch on common landmarks, else the centroids.
+  std::vector<std::pair<Vec3, Vec3>> pairs;
+  for (const auto& [name, p] : lm_moving.points)
+    if (const Vec3* q = lm_fixed.find(name)) pairs.emplace_back(p, *q);
+  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t0 = Eigen::Vector3d::Zero();
+  if (pairs.size() >= 3) {
+    Eigen::Vector3d cm = Eigen::Vector3d::Zero(), cf = Eigen::Vector3d::Zero();
+    for (const auto& [a, b] : pairs) cm += Eigen::Vector3d(a[0], a[1], a[2]), cf += Eigen::Vector3d(b[0], b[1], b[2]);
+    cm /= static_cast<double>(pairs.size());
+    cf /= static_cast<double>(pairs.size());
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    for (const auto& [a, b] : pairs) H += (Eigen::Vector3d(a[0], a[1], a[2]) - cm) * (Eigen::Vector3d(b[0], b[1], b[2]) - cf).transpose();
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+    D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+    R0 = svd.matrixV() * D * svd.matrixU().transpose();
+    t0 = cf - R0 * cm;
+    res.landmark_pairs = pairs.size();
+  } else {
+    Vec3 cm{0, 0, 0}, cf{0, 0, 0};
+    for (const auto& v : moving.vertices) cm = cm + v;
+    for (const auto& v : fixed.vertices) cf = cf + v;
+    cm = (1.0 / static_cast<double>(std::max<std::size_t>(1, moving.vertices.size()))) * cm;
+    cf = (1.0 / static_cast<double>(std::max<std::size_t>(1, fixed.vertices.size()))) * cf;
+    t0 = Eigen::Vector3d(cf[0] - cm[0], cf[1] - cm[1], cf[2] - cm[2]);
+  }
+  double aa[3], t[3] = {t0[0], t0[1], t0[2]};
+  {
+    const double Rm[9] = {R0(0, 0), R0(1, 0), R0(2, 0), R0(0, 1), R0(1, 1), R0(2, 1), R0(0, 2), R0(1, 2), R0(2, 2)};  // column-major
+    ceres::RotationMatrixToAngleAxis(Rm, aa);
+  }
+  auto current = [&] {
+    RigidTransform T;
+    double Rc[9];
+    ceres::AngleAxisToRotationMatrix(aa, Rc);  // column-major
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) T.R[3 * r + c] = Rc[3 * c + r];
+    T.t = {t[0], t[1], t[2]};
+    return T;
+  };
+  if (!fixed.faces.empty() && !moving.vertices.empty()) {
+    const geometry::ClosestPointIndex index(fixed);
+    const auto fn = geometry::face_normals(fixed);
+    const std::size_t step = std::max<std::size_t>(1, moving.vertices.size() / 6000);
+    for (int round = 0; round < rounds; ++round) {
+      const RigidTransform T = current();
+      ceres::Problem pb;
+      std::vector<double> dist;
+      for (std::size_t i = 0; i < moving.vertices.size(); i += step) {
+        const Vec3& v = moving.vertices[i];
+        const auto hit = index.closest(T.apply(v));
+        dist.push_back(hit.distance);
+        pb.AddResidualBlock(new ceres::AutoDiffCostFunction<RigidPointToPlane, 1, 3, 3>(
+                                new RigidPointToPlane{v, hit.point, fn[static_cast<std::size_t>(hit.face)]}),
+                            new ceres::CauchyLoss(cauchy_mm), aa, t);
+      }
+      ceres::Solver::Summary s;
+      ceres::Solve(solver_options(30), &pb, &s);
+      std::nth_element(dist.begin(), dist.begin() + dist.size() / 2, dist.end());
+      double ss = 0;
+      for (std::size_t k = 0; k <= dist.size() / 2; ++k) ss += dist[k] * dist[k];
+      res.rms_mm = std::sqrt(ss / static_cast<double>(dist.size() / 2 + 1));
+      const RigidTransform N = current();
+      double moved = 0;
+      for (const Vec3& probe : {Vec3{0, 0, 0}, Vec3{50, 0, 0}, Vec3{0, 50, 0}, Vec3{0, 0, 50}})
+        moved = std::max(moved, distance(N.apply(probe), T.apply(probe)));
+      if (moved < 1e-3) break;
+    }
+  }
+  res.transform = current();
+  return res;
+}
 
 void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si) {
   e_ml = normalized(plane.normal);

@@ -6,6 +6,7 @@
 // point-to-plane residuals, Huber loss, a few correspondence rounds.
 #pragma once
 
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
@@ -41,6 +42,26 @@ Result fit(const LandmarkSet& detected, const Mesh* surface, const Options& opti
 // from about 20 degrees off). rms_mm (optional): final point-to-plane RMS.
 Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const Options& options = {},
                               double* rms_mm = nullptr);
+
+// Rigid transform x -> R x + t (R row-major).
+struct RigidTransform {
+  std::array<double, 9> R{1, 0, 0, 0, 1, 0, 0, 0, 1};
+  Vec3 t{0, 0, 0};
+  Vec3 apply(const Vec3& x) const;
+};
+
+struct AlignResult {
+  RigidTransform transform;   // moving -> fixed
+  double rms_mm = 0;          // point-to-plane RMS of the inlier half of the last round
+  std::size_t landmark_pairs = 0;  // landmarks used for the initial guess
+};
+
+// Aligns a surface to another of the same bone (pre/post surgery): Kabsch on
+// the landmarks both sets have (at least 3; otherwise the centroids), then
+// point-to-plane ICP with a Cauchy loss (scale cauchy_mm) so that the parts
+// that really changed do not drag the fit.
+AlignResult align_rigid(const Mesh& moving, const Mesh& fixed, const LandmarkSet& lm_moving, const LandmarkSet& lm_fixed,
+                        int rounds = 12, double cauchy_mm = 1.0);
 
 // Orthonormal frame of a symmetry plane: e_ml = normal, e_si = superior
 // projected into the plane, e_ap = e_si x e_ml (posterior).

@@ -302,3 +302,42 @@ TEST(EndToEnd, DicomStringsAreEscapedAndDeidentifyRemovesThem) {
   fs::remove_all(out);
   fs::remove_all(anon);
 }
+
+namespace {
+
+TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
+  const fs::path src = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
+  const fs::path pre = temp_dir("cmp_pre"), out = temp_dir("cmp_out"), same = temp_dir("cmp_same");
+  std::string err;
+  ASSERT_EQ(run("run " + (src / "symmetric" / "dicom").string() + " -o " + pre.string() + " -q --no-figures", &err), 0) << err;
+  // POST given as a scan: compare runs it itself into out/post.
+  ASSERT_EQ(run("compare " + pre.string() + " " + (src / "ramus_L_plus4mm" / "dicom").string() + " -o " + out.string() + " -q", &err), 0)
+      << err;
+  const Value c = load(out / "compare.json");
+  EXPECT_TRUE(fs::exists(out / "post" / "results.json"));
+  EXPECT_TRUE(fs::exists(out / "post_aligned.vtp"));
+  EXPECT_TRUE(fs::exists(out / "compare.html"));
+  EXPECT_EQ(c.at("alignment").at("landmark_pairs").as_number(), 8);
+  EXPECT_LT(c.at("alignment").at("rotation_deg").as_number(), 1.0);
+  // The left condyle rose by 4 mm between the two scans.
+  const double out_mm = c.at("change").at("max_outward_mm").as_number();
+  EXPECT_GT(out_mm, 3.0);
+  EXPECT_LT(out_mm, 4.5);
+  EXPECT_LT(c.at("change").at("mean_abs_mm").as_number(), 0.3);  // elsewhere unchanged
+  const double ramus = c.at("scores").at("ramus_height_mm L−R").at("change").as_number();
+  EXPECT_GT(ramus, 2.5);
+  EXPECT_LT(ramus, 4.5);
+  // The same scan twice: no change.
+  ASSERT_EQ(run("compare " + pre.string() + " " + pre.string() + " -o " + same.string() + " -q", &err), 0) << err;
+  const Value s = load(same / "compare.json");
+  EXPECT_LT(s.at("change").at("p95_mm").as_number(), 0.05);
+  EXPECT_NEAR(s.at("scores").at("SAF score (rad)").at("change").as_number(), 0.0, 1e-12);
+  // Usage errors.
+  EXPECT_EQ(run("compare " + pre.string() + " -o " + same.string()), 2);
+  EXPECT_EQ(run("compare " + pre.string() + " /nonexistent/post -o " + same.string()), 3);
+  fs::remove_all(pre);
+  fs::remove_all(out);
+  fs::remove_all(same);
+}
+
+}  // namespace

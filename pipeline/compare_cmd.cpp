@@ -1,0 +1,251 @@
+// `mandisym compare PRE POST -o DIR`: pre/post surgery comparison.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/json.h"
+#include "geometry/mesh_geometry.h"
+#include "pipeline/commands.h"
+#include "reference/reference.h"
+#include "reports/render.h"
+#include "reports/writers.h"
+#include "surface/surface.h"
+
+namespace fs = std::filesystem;
+
+namespace ms::pipeline {
+
+const cli::CommandSpec& compare_spec() {
+  static const cli::CommandSpec s{
+      "compare",
+      "Compare two scans of one patient (pre/post surgery): scores side by side, post aligned to pre, change map.",
+      "PRE and POST are completed `mandisym run` folders (with results.json and mandible.vtp) or inputs that `run` "
+      "accepts; inputs are run first into DIR/pre and DIR/post. POST's surface is aligned rigidly to PRE's (Kabsch "
+      "on common landmarks, then point-to-plane ICP with a Cauchy loss, so that what surgery changed does not drag "
+      "the fit). Writes compare.json, compare.html (self-contained), post_aligned.vtp with the per-vertex "
+      "`change_mm` (signed distance of aligned POST to PRE, + where POST lies outside PRE) and qc/ figures.",
+      {{"PRE", "the earlier scan or run folder"}, {"POST", "the later scan or run folder"}},
+      {{"output", "DIR", "output folder (created)", ""},
+       {"quiet", "", "print nothing but errors", ""},
+       {"help", "", "show this help", ""}}};
+  return s;
+}
+
+namespace {
+
+struct RunData {
+  fs::path dir;
+  json::Value results;
+  Mesh mesh;
+  LandmarkSet landmarks;
+  Plane plane;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+bool is_run_folder(const fs::path& p) {
+  return fs::is_directory(p) && fs::exists(p / "results.json") && fs::exists(p / "mandible.vtp");
+}
+
+RunData load_run(const fs::path& dir) {
+  RunData d;
+  d.dir = dir;
+  try {
+    d.results = json::Value::parse(slurp(dir / "results.json"));
+  } catch (const std::exception& e) {
+    throw Error(ExitCode::InputInvalid, (dir / "results.json").string() + ": " + e.what());
+  }
+  d.mesh = surface::read_vtp((dir / "mandible.vtp").string());
+  if (d.results.contains("landmarks"))
+    for (const auto& [name, v] : d.results.at("landmarks").items())
+      if (v.is_array() && v.size() == 3) d.landmarks.set(name, {v[0].as_number(), v[1].as_number(), v[2].as_number()});
+  const auto& sp = d.results.at("symmetry_plane");
+  for (int a = 0; a < 3; ++a) {
+    d.plane.point[a] = sp.at("point")[static_cast<std::size_t>(a)].as_number();
+    d.plane.normal[a] = sp.at("normal")[static_cast<std::size_t>(a)].as_number();
+  }
+  return d;
+}
+
+// Resolves PRE / POST: a run folder, or an input run into out/name.
+RunData resolve(const std::string& input, const fs::path& out, const std::string& name, bool quiet) {
+  if (is_run_folder(input)) return load_run(input);
+  if (!fs::exists(input)) throw Error(ExitCode::InputNotFound, input + ": no such file or folder");
+  const fs::path dir = out / name;
+  if (!quiet) std::cout << "compare: running " << name << " (" << input << ")" << std::endl;
+  const cli::Args a = cli::parse(run_spec(), {input, "-o", dir.string(), "-q"});
+  run_command(a, "mandisym run " + input + " -o " + dir.string());
+  return load_run(dir);
+}
+
+double number_at(const json::Value& v, std::initializer_list<const char*> path, bool* ok) {
+  const json::Value* cur = &v;
+  for (const char* k : path) {
+    if (!cur->is_object() || !cur->contains(k)) {
+      *ok = false;
+      return NAN;
+    }
+    cur = &cur->at(k);
+  }
+  *ok = cur->is_number();
+  return *ok ? cur->as_number() : NAN;
+}
+
+std::string fmt(double v, int prec = 2) {
+  if (!std::isfinite(v)) return "n/a";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", prec, v);
+  return b;
+}
+
+}  // namespace
+
+int compare_command(const cli::Args& args) {
+  const std::string out_s = args.get("output");
+  if (out_s.empty()) throw Error(ExitCode::Usage, "compare: -o DIR is required");
+  if (args.positional.size() != 2) throw Error(ExitCode::Usage, "compare: needs PRE and POST");
+  const bool quiet = args.has("quiet");
+  const fs::path out = out_s;
+  std::error_code ec;
+  fs::create_directories(out / "qc", ec);
+  if (ec) throw Error(ExitCode::OutputFailed, out.string() + ": cannot create the output folder: " + ec.message());
+
+  const RunData pre = resolve(args.positional[0], out, "pre", quiet);
+  const RunData post = resolve(args.positional[1], out, "post", quiet);
+
+  // Align POST to PRE and measure the change.
+  const auto al = reference::align_rigid(post.mesh, pre.mesh, post.landmarks, pre.landmarks);
+  Mesh aligned = post.mesh;
+  for (auto& v : aligned.vertices) v = al.transform.apply(v);
+  LandmarkSet aligned_lm;
+  for (const auto& [name, p] : post.landmarks.points) aligned_lm.set(name, al.transform.apply(p));
+  const geometry::ClosestPointIndex pre_index(pre.mesh);
+  const auto pre_normals = geometry::face_normals(pre.mesh);
+  std::vector<double> change(aligned.vertices.size());
+  for (std::size_t i = 0; i < change.size(); ++i) change[i] = geometry::signed_distance(pre_index, pre_normals, aligned.vertices[i]);
+  surface::write_vtp(aligned, {{"change_mm", change}}, (out / "post_aligned.vtp").string());
+  double mean_abs = 0, max_out = 0, max_in = 0;
+  std::vector<double> absd;
+  for (double d : change) {
+    mean_abs += std::abs(d);
+    max_out = std::max(max_out, d);
+    max_in = std::max(max_in, -d);
+    absd.push_back(std::abs(d));
+  }
+  mean_abs /= std::max<std::size_t>(1, change.size());
+  std::sort(absd.begin(), absd.end());
+  const double p95 = absd.empty() ? 0.0 : absd[static_cast<std::size_t>(0.95 * static_cast<double>(absd.size() - 1))];
+  const double angle = std::acos(std::clamp((al.transform.R[0] + al.transform.R[4] + al.transform.R[8] - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
+
+  // Scores side by side.
+  json::Value cj = json::Value::object();
+  cj["schema_version"] = "1.0";
+  cj["pre"] = pre.dir.string();
+  cj["post"] = post.dir.string();
+  json::Value alj = json::Value::object();
+  alj["landmark_pairs"] = static_cast<double>(al.landmark_pairs);
+  alj["rms_mm"] = al.rms_mm;
+  alj["rotation_deg"] = angle;
+  alj["translation_mm"] = norm(al.transform.t);
+  cj["alignment"] = alj;
+  json::Value ch = json::Value::object();
+  ch["mean_abs_mm"] = mean_abs;
+  ch["p95_mm"] = p95;
+  ch["max_outward_mm"] = max_out;
+  ch["max_inward_mm"] = max_in;
+  cj["change"] = ch;
+  struct Row {
+    std::string label;
+    std::vector<const char*> path;
+    int prec;
+  };
+  std::vector<Row> rows = {{"SAF score (rad)", {"scores", "saf", "score"}, 4},
+                           {"mirror distance RMS (mm)", {"scores", "mirror", "rms_mm"}, 2},
+                           {"mirror distance p95 (mm)", {"scores", "mirror", "p95_mm"}, 2}};
+  for (const char* m : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg", "condyle_to_plane_mm", "gonion_to_plane_mm"})
+    rows.push_back({std::string(m) + " L−R", {"scores", "bilateral", m, "diff"}, 2});
+  json::Value sj = json::Value::object();
+  std::ostringstream table;
+  table << "<table><tr><th>score</th><th>pre</th><th>post</th><th>change</th></tr>\n";
+  for (const auto& r : rows) {
+    bool ok1 = false, ok2 = false;
+    double a = NAN, b = NAN;
+    switch (r.path.size()) {
+      case 3: a = number_at(pre.results, {r.path[0], r.path[1], r.path[2]}, &ok1); b = number_at(post.results, {r.path[0], r.path[1], r.path[2]}, &ok2); break;
+      case 4: a = number_at(pre.results, {r.path[0], r.path[1], r.path[2], r.path[3]}, &ok1); b = number_at(post.results, {r.path[0], r.path[1], r.path[2], r.path[3]}, &ok2); break;
+    }
+    json::Value e = json::Value::object();
+    e["pre"] = ok1 ? json::Value(a) : json::Value();
+    e["post"] = ok2 ? json::Value(b) : json::Value();
+    e["change"] = ok1 && ok2 ? json::Value(b - a) : json::Value();
+    sj[r.label] = e;
+    table << "<tr><td>" << reports::html_escape(r.label) << "</td><td>" << (ok1 ? fmt(a, r.prec) : "n/a") << "</td><td>"
+          << (ok2 ? fmt(b, r.prec) : "n/a") << "</td><td>" << (ok1 && ok2 ? fmt(b - a, r.prec) : "n/a") << "</td></tr>\n";
+  }
+  table << "</table>\n";
+  cj["scores"] = sj;
+
+  // Figures: the change map on the aligned POST surface, PRE's plane.
+  const auto rv = reports::render_views(aligned, change, reports::ColourMap{"change post - pre (mm)", -5.0, 5.0, true},
+                                        aligned_lm, pre.plane, (out / "qc" / "view_change").string());
+  cj["warnings"] = json::Value::array();
+  if (!rv.error.empty()) cj["warnings"].push_back(json::Value("3D views not rendered: " + rv.error));
+  if (al.landmark_pairs < 3) cj["warnings"].push_back(json::Value("fewer than 3 common landmarks: alignment started from the centroids"));
+
+  std::ostringstream h;
+  h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym pre/post comparison</title>"
+       "<style>body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#1d2433;padding:0 1em}"
+       "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #dde3ec;padding:.3em .7em;text-align:right}"
+       "td:first-child,th:first-child{text-align:left}th{background:#f2f5fa}.muted{color:#5a6475;font-size:.9em}"
+       ".views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views img{width:100%;border:1px solid #dde3ec}"
+       ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}</style></head><body>\n"
+    << "<h1>Pre/post comparison</h1>\n<p class=\"muted\">MandiSym " << reports::html_escape(version())
+    << " &middot; pre: " << reports::html_escape(pre.dir.filename().string()) << " &middot; post: "
+    << reports::html_escape(post.dir.filename().string()) << "</p>\n";
+  for (std::size_t i = 0; i < cj["warnings"].size(); ++i)
+    h << "<div class=\"warn\">&#9888; " << reports::html_escape(cj["warnings"][i].as_string()) << "</div>\n";
+  h << "<h2>Scores</h2>\n" << table.str()
+    << "<p class=\"muted\">change = post &minus; pre. Each scan's scores are measured on its own surface and symmetry "
+       "plane; see each run's report.html for details.</p>\n"
+    << "<h2>Surface change (post aligned to pre)</h2>\n<p>Mean |change| " << fmt(mean_abs) << " mm, 95th percentile "
+    << fmt(p95) << " mm, largest outward " << fmt(max_out) << " mm, inward " << fmt(max_in) << " mm. Alignment: "
+    << al.landmark_pairs << " common landmarks, then ICP; rotation " << fmt(angle) << "&deg;, translation "
+    << fmt(norm(al.transform.t)) << " mm, residual (closest half) " << fmt(al.rms_mm) << " mm.</p>\n";
+  if (rv.files.empty()) {
+    h << "<p class=\"muted\">3D views not rendered: " << reports::html_escape(rv.error) << "</p>\n";
+  } else {
+    h << "<p class=\"muted\">Red: post lies outside pre (bone added or moved outward); blue: inside.</p><div class=\"views\">\n";
+    for (const auto& f : rv.files)
+      h << "<figure><img alt=\"" << reports::html_escape(fs::path(f).stem().string()) << "\" src=\""
+        << reports::png_data_uri(f) << "\"><figcaption class=\"muted\">" << reports::html_escape(fs::path(f).stem().string())
+        << "</figcaption></figure>\n";
+    h << "</div>\n";
+  }
+  for (const auto* d : {&pre, &post}) {
+    const fs::path front = d->dir / "qc" / "view_mirror_front.png";
+    if (!fs::exists(front)) continue;
+    h << "<h2>Mirror distance, " << (d == &pre ? "pre" : "post") << "</h2>\n<div class=\"views\">\n";
+    for (const char* v : {"front", "below", "left", "right"}) {
+      const fs::path f = d->dir / "qc" / (std::string("view_mirror_") + v + ".png");
+      if (fs::exists(f)) h << "<figure><img alt=\"" << v << "\" src=\"" << reports::png_data_uri(f.string()) << "\"></figure>\n";
+    }
+    h << "</div>\n";
+  }
+  h << "</body></html>\n";
+  reports::write_text_atomic((out / "compare.html").string(), h.str());
+  reports::write_text_atomic((out / "compare.json").string(), cj.dump(2) + "\n");
+  if (!quiet) std::cout << "compare: " << (out / "compare.html").string() << std::endl;
+  return 0;
+}
+
+}  // namespace ms::pipeline
