@@ -12,12 +12,14 @@ const cli::CommandSpec& run_spec();
 const cli::CommandSpec& phantom_spec();
 const cli::CommandSpec& inspect_spec();
 const cli::CommandSpec& compare_spec();
+const cli::CommandSpec& batch_spec();
 
 // Each returns the process exit code; errors are thrown as ms::Error.
 int run_command(const cli::Args& args, const std::string& command_line);
 int phantom_command(const cli::Args& args);
 int inspect_command(const cli::Args& args);
 int compare_command(const cli::Args& args);
+int batch_command(const cli::Args& args);
 
 const char* version();
 

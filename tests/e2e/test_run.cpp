@@ -341,3 +341,51 @@ TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(EndToEnd, BatchRunsEveryStudyRecordsFailuresAndResumes) {
+  const fs::path src = temp_dir("batch_src"), out = temp_dir("batch_out");
+  const fs::path samples = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
+  fs::create_directories(src);
+  fs::create_directory_symlink(samples / "symmetric" / "dicom", src / "sym");
+  fs::create_directory_symlink(samples / "ramus_L_plus4mm" / "dicom", src / "ramus4");
+  fs::create_directories(src / "not_dicom");
+  std::ofstream(src / "not_dicom" / "notes.txt") << "not an image\n";
+  std::string err;
+  EXPECT_EQ(run("batch " + src.string() + " -o " + out.string() + " --jobs 2 -q", &err), 9) << err;  // one study failed
+  auto read = [](const fs::path& p) {
+    std::ifstream f(p);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+  };
+  std::string csv = read(out / "cohort.csv");
+  EXPECT_NE(csv.find("\"sym\",\"ok\",0,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\"ramus4\",\"ok\",0,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\"not_dicom\",\"failed\",4,\"mandisym: error:"), std::string::npos) << csv;
+  EXPECT_TRUE(fs::exists(out / "sym" / "report.html"));
+  const std::string html = read(out / "cohort.html");
+  EXPECT_NE(html.find("href=\"sym/report.html\""), std::string::npos);
+  // Resumable: completed studies are not run again, and give the same rows.
+  const auto stamp = fs::last_write_time(out / "sym" / "results.json");
+  EXPECT_EQ(run("batch " + src.string() + " -o " + out.string() + " -q", &err), 9) << err;
+  EXPECT_EQ(fs::last_write_time(out / "sym" / "results.json"), stamp);
+  csv = read(out / "cohort.csv");
+  EXPECT_NE(csv.find("\"sym\",\"done-earlier\",0,"), std::string::npos) << csv;
+  // Deterministic: a fresh run of the same study gives the same numbers.
+  const fs::path again = temp_dir("batch_again");
+  ASSERT_EQ(run("run " + (samples / "symmetric" / "dicom").string() + " -o " + again.string() + " -q", &err), 0) << err;
+  const Value a = load(out / "sym" / "results.json"), b = load(again / "results.json");
+  EXPECT_EQ(a.at("scores").dump(), b.at("scores").dump());
+  EXPECT_EQ(a.at("landmarks").dump(), b.at("landmarks").dump());
+  EXPECT_EQ(a.at("mesh").dump(), b.at("mesh").dump());
+  // A CSV list with ids and relative paths.
+  std::ofstream(src / "list.csv") << "id,path\nfirst one,sym\n";
+  const fs::path out2 = temp_dir("batch_csv");
+  EXPECT_EQ(run("batch " + (src / "list.csv").string() + " -o " + out2.string() + " -q", &err), 0) << err;
+  EXPECT_TRUE(fs::exists(out2 / "first_one" / "results.json"));
+  for (const auto& d : {src, out, again, out2}) fs::remove_all(d);
+}
+
+}  // namespace

@@ -1,0 +1,382 @@
+// `mandisym batch DIR_OR_CSV -o OUT [--jobs N]`: one `run` per study, in
+// child processes (a crash or an error in one study never stops the others),
+// resumable, with cohort.csv and cohort.html.
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/json.h"
+#include "pipeline/commands.h"
+#include "reports/writers.h"
+
+extern char** environ;
+namespace fs = std::filesystem;
+
+namespace ms::pipeline {
+
+const cli::CommandSpec& batch_spec() {
+  static const cli::CommandSpec s{
+      "batch",
+      "Run every study of a folder or a CSV list; write cohort.csv and cohort.html.",
+      "SOURCE is a folder whose sub-folders and volume files are the studies (study id = their name), or a CSV file "
+      "with a header and columns id,path (path relative to the CSV's folder or absolute). Each study runs as a "
+      "separate `mandisym run` process into OUT/<id>/ (ids are sanitised into safe folder names), up to --jobs at "
+      "a time. Studies whose OUT/<id>/results.json already exists and parses are skipped (resumable; `run` writes "
+      "results.json last, so an interrupted study never looks complete). A failed study is recorded with its exit "
+      "code and error line, and the others go on. Ctrl-C stops launching, lets the running studies end, and still "
+      "writes the cohort files. Exit code 0 when every study succeeded, 9 when some failed (see cohort.csv), 130 when interrupted.",
+      {{"SOURCE", "folder of studies, or CSV with id,path"}},
+      {{"output", "DIR", "output folder (created)", ""},
+       {"jobs", "N", "studies run at once (each run also uses its own threads)", "1"},
+       {"deidentify", "", "pass --deidentify to every run", ""},
+       {"quiet", "", "no progress output", ""},
+       {"help", "", "show this help", ""}}};
+  return s;
+}
+
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+void on_sigint(int) { g_interrupted = true; }
+
+struct Study {
+  std::string id;   // safe folder name
+  std::string path;
+  std::string status = "pending";  // ok | failed | skipped (already done)
+  int exit_code = -1;
+  std::string error;
+  double seconds = 0;
+};
+
+std::string safe_id(std::string s) {
+  for (char& c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.')) c = '_';
+  if (s.empty() || s[0] == '.') s = "_" + s;
+  return s;
+}
+
+std::vector<std::string> split_csv_line(const std::string& line) {
+  std::vector<std::string> out;
+  std::string cur;
+  bool q = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (q) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') cur += '"', ++i;
+      else if (c == '"') q = false;
+      else cur += c;
+    } else if (c == '"') {
+      q = true;
+    } else if (c == ',') {
+      out.push_back(cur), cur.clear();
+    } else if (c != '\r') {
+      cur += c;
+    }
+  }
+  out.push_back(cur);
+  return out;
+}
+
+std::vector<Study> list_studies(const std::string& source) {
+  std::vector<Study> out;
+  const fs::path src = source;
+  if (fs::is_directory(src)) {
+    std::vector<fs::path> entries;
+    for (const auto& e : fs::directory_iterator(src))
+      if (e.path().filename().string()[0] != '.') entries.push_back(e.path());
+    std::sort(entries.begin(), entries.end());
+    for (const auto& p : entries) {
+      Study st;
+      st.id = safe_id(p.filename().string());
+      st.path = p.string();
+      out.push_back(st);
+    }
+  } else if (fs::is_regular_file(src)) {
+    std::ifstream f(src);
+    std::string line;
+    if (!std::getline(f, line)) throw Error(ExitCode::InputInvalid, source + ": empty CSV");
+    const auto head = split_csv_line(line);
+    const auto col = [&](const char* name) {
+      for (std::size_t i = 0; i < head.size(); ++i)
+        if (head[i] == name) return static_cast<long>(i);
+      return -1L;
+    };
+    const long ci = col("id"), cp = col("path");
+    if (cp < 0) throw Error(ExitCode::InputInvalid, source + ": the CSV needs a header with columns id,path");
+    int row = 1;
+    while (std::getline(f, line)) {
+      ++row;
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      const auto v = split_csv_line(line);
+      if (static_cast<long>(v.size()) <= cp) throw Error(ExitCode::InputInvalid, source + ": line " + std::to_string(row) + " has no path");
+      fs::path p = v[static_cast<std::size_t>(cp)];
+      if (p.is_relative()) p = src.parent_path() / p;
+      const std::string id = ci >= 0 && static_cast<long>(v.size()) > ci && !v[static_cast<std::size_t>(ci)].empty()
+                                 ? v[static_cast<std::size_t>(ci)]
+                                 : p.filename().string();
+      Study st;
+      st.id = safe_id(id);
+      st.path = p.string();
+      out.push_back(st);
+    }
+  } else {
+    throw Error(ExitCode::InputNotFound, source + ": no such folder or CSV file");
+  }
+  // Unique ids.
+  std::map<std::string, int> seen;
+  for (auto& s : out) {
+    const int k = seen[s.id]++;
+    if (k) s.id += "_" + std::to_string(k + 1);
+  }
+  if (out.empty()) throw Error(ExitCode::InputInvalid, source + ": no studies found");
+  return out;
+}
+
+bool complete(const fs::path& dir) {
+  std::ifstream f(dir / "results.json");
+  if (!f) return false;
+  std::stringstream s;
+  s << f.rdbuf();
+  try {
+    const json::Value v = json::Value::parse(s.str());
+    return v.contains("schema_version") && v.contains("scores");
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+std::string self_exe() {
+  std::error_code ec;
+  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string("mandisym") : p.string();
+}
+
+std::string first_error_line(const fs::path& log) {
+  std::ifstream f(log);
+  std::string line, last;
+  while (std::getline(f, line))
+    if (line.find("error") != std::string::npos) return line;
+    else if (!line.empty()) last = line;
+  return last;
+}
+
+std::string fmt(double v, int prec = 3) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*f", prec, v);
+  return b;
+}
+
+// Inline SVG histogram of values, outliers marked.
+std::string histogram_svg(const std::vector<double>& v, const std::string& title) {
+  if (v.empty()) return "";
+  const double lo = *std::min_element(v.begin(), v.end()), hi = *std::max_element(v.begin(), v.end());
+  const int bins = 12;
+  std::vector<int> h(bins, 0);
+  for (double x : v) h[std::min(bins - 1, static_cast<int>((x - lo) / std::max(1e-12, hi - lo) * bins))]++;
+  const int top = *std::max_element(h.begin(), h.end());
+  std::ostringstream o;
+  o << "<figure><svg width=\"360\" height=\"150\" role=\"img\" aria-label=\"" << reports::html_escape(title) << "\">";
+  for (int b = 0; b < bins; ++b) {
+    const double hh = 110.0 * h[b] / std::max(1, top);
+    o << "<rect x=\"" << 10 + b * 28 << "\" y=\"" << fmt(120 - hh, 1) << "\" width=\"26\" height=\"" << fmt(hh, 1)
+      << "\" fill=\"#6a8cc7\"/>";
+  }
+  o << "<text x=\"10\" y=\"140\" font-size=\"11\">" << fmt(lo) << "</text><text x=\"300\" y=\"140\" font-size=\"11\">" << fmt(hi)
+    << "</text></svg><figcaption>" << reports::html_escape(title) << " (n = " << v.size() << ")</figcaption></figure>\n";
+  return o.str();
+}
+
+}  // namespace
+
+int batch_command(const cli::Args& args) {
+  const std::string out_s = args.get("output");
+  if (out_s.empty()) throw Error(ExitCode::Usage, "batch: -o OUT is required");
+  const int jobs = static_cast<int>(args.number("jobs", 1));
+  if (jobs < 1 || jobs > 256) throw Error(ExitCode::Usage, "batch: --jobs must be 1..256");
+  const bool quiet = args.has("quiet");
+  const fs::path out = out_s;
+  std::vector<Study> studies = list_studies(args.positional.at(0));
+  std::error_code ec;
+  fs::create_directories(out / ".logs", ec);
+  if (ec) throw Error(ExitCode::OutputFailed, out.string() + ": cannot create the output folder: " + ec.message());
+
+  struct sigaction sa {};
+  sa.sa_handler = on_sigint;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  const std::string exe = self_exe();
+  const bool tty = !quiet && isatty(STDOUT_FILENO);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::size_t next = 0, done = 0, todo = 0;
+  for (auto& s : studies)
+    if (complete(out / s.id)) s.status = "done-earlier", s.exit_code = 0;
+    else ++todo;
+  std::map<pid_t, std::pair<std::size_t, std::chrono::steady_clock::time_point>> running;
+  auto progress = [&] {
+    if (quiet) return;
+    const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double eta = done ? el / static_cast<double>(done) * static_cast<double>(todo - done) : 0;
+    char b[160];
+    const int width = 30, fill = todo ? static_cast<int>(width * done / todo) : width;
+    std::snprintf(b, sizeof b, "[%s%s] %zu/%zu studies, %zu running, elapsed %.0f s, ETA %.0f s", std::string(fill, '#').c_str(),
+                  std::string(width - fill, '.').c_str(), done, todo, running.size(), el, eta);
+    if (tty) std::cout << "\r" << b << std::flush;
+    else std::cout << b << "\n";
+  };
+  progress();
+  while (true) {
+    while (!g_interrupted && static_cast<int>(running.size()) < jobs && next < studies.size()) {
+      Study& s = studies[next++];
+      if (s.status == "done-earlier") continue;
+      const fs::path log = out / ".logs" / (s.id + ".log");
+      std::vector<std::string> a = {exe, "run", s.path, "-o", (out / s.id).string(), "-q"};
+      if (args.has("deidentify")) a.push_back("--deidentify");
+      std::vector<char*> argv;
+      for (auto& x : a) argv.push_back(x.data());
+      argv.push_back(nullptr);
+      posix_spawn_file_actions_t fa;
+      posix_spawn_file_actions_init(&fa);
+      posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      posix_spawn_file_actions_adddup2(&fa, 1, 2);
+      pid_t pid = -1;
+      const int rc = posix_spawn(&pid, exe.c_str(), &fa, nullptr, argv.data(), environ);
+      posix_spawn_file_actions_destroy(&fa);
+      if (rc != 0) {
+        s.status = "failed", s.error = "cannot start " + exe, ++done;
+        continue;
+      }
+      running[pid] = {static_cast<std::size_t>(&s - studies.data()), std::chrono::steady_clock::now()};
+    }
+    if (running.empty()) break;
+    int st = 0;
+    const pid_t pid = waitpid(-1, &st, 0);
+    if (pid < 0) {
+      if (errno == EINTR) continue;
+      break;
+    }
+    auto it = running.find(pid);
+    if (it == running.end()) continue;
+    Study& s = studies[it->second.first];
+    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.second).count();
+    running.erase(it);
+    s.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    if (s.exit_code == 0 && complete(out / s.id)) {
+      s.status = "ok";
+    } else if (g_interrupted && WIFSIGNALED(st)) {
+      s.status = "not run (interrupted)";
+    } else {
+      s.status = "failed";
+      s.error = first_error_line(out / ".logs" / (s.id + ".log"));
+      if (s.error.empty()) s.error = WIFSIGNALED(st) ? "killed by signal " + std::to_string(WTERMSIG(st)) : "exit code " + std::to_string(s.exit_code);
+    }
+    ++done;
+    progress();
+  }
+  if (tty) std::cout << "\n";
+  for (auto& s : studies)
+    if (s.status == "pending") s.status = "not run (interrupted)";
+
+  // cohort.csv: id, status, exit code, error, then each study's results.csv row.
+  std::ostringstream csv;
+  std::string header;
+  std::vector<std::vector<std::string>> rows(studies.size());
+  for (std::size_t i = 0; i < studies.size(); ++i) {
+    std::ifstream f(out / studies[i].id / "results.csv");
+    std::string h, r;
+    if ((studies[i].status == "ok" || studies[i].status == "done-earlier") && std::getline(f, h) && std::getline(f, r)) {
+      if (header.empty()) header = h;
+      rows[i] = split_csv_line(r);
+    }
+  }
+  auto q = [](const std::string& x) {
+    std::string o = "\"";
+    for (char c : x) o += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return o + "\"";
+  };
+  const auto hcols = split_csv_line(header.empty() ? reports::csv_header().substr(0, reports::csv_header().size() - 1) : header);
+  csv << "id,status,exit_code,error";
+  for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << hcols[c];  // skip study,status
+  csv << "\n";
+  for (std::size_t i = 0; i < studies.size(); ++i) {
+    const Study& s = studies[i];
+    csv << q(s.id) << "," << q(s.status) << "," << s.exit_code << "," << q(s.error);
+    for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << (c < rows[i].size() ? rows[i][c] : "");
+    csv << "\n";
+  }
+  reports::write_text_atomic((out / "cohort.csv").string(), csv.str());
+
+  // cohort.html: distributions, outliers (beyond 1.5 IQR), links to reports.
+  auto column = [&](const std::string& name) {
+    std::vector<std::pair<std::size_t, double>> v;
+    for (std::size_t c = 0; c < hcols.size(); ++c)
+      if (hcols[c] == name)
+        for (std::size_t i = 0; i < rows.size(); ++i)
+          if (c < rows[i].size() && !rows[i][c].empty()) v.emplace_back(i, std::atof(rows[i][c].c_str()));
+    return v;
+  };
+  std::map<std::size_t, std::vector<std::string>> outliers;
+  std::ostringstream figs;
+  for (const char* name : {"saf_score", "mirror_rms_mm", "mirror_p95_mm", "ramus_height_diff_mm"}) {
+    const auto v = column(name);
+    std::vector<double> x;
+    for (const auto& [i, val] : v) x.push_back(val);
+    figs << histogram_svg(x, name);
+    if (x.size() >= 4) {
+      std::vector<double> s = x;
+      std::sort(s.begin(), s.end());
+      const double q1 = s[s.size() / 4], q3 = s[3 * s.size() / 4], iqr = q3 - q1;
+      for (const auto& [i, val] : v)
+        if (val > q3 + 1.5 * iqr || val < q1 - 1.5 * iqr) outliers[i].push_back(name);
+    }
+  }
+  std::size_t n_ok = 0, n_failed = 0;
+  for (const auto& s : studies) (s.status == "ok" || s.status == "done-earlier" ? n_ok : n_failed)++;
+  std::ostringstream h;
+  h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym cohort</title><style>"
+       "body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1200px;color:#1d2433;padding:0 1em}"
+       "table{border-collapse:collapse}td,th{border:1px solid #dde3ec;padding:.25em .6em;text-align:right}"
+       "td:first-child,th:first-child,td.l{text-align:left}th{background:#f2f5fa}.bad{background:#fde8e8}"
+       ".out{background:#fff4e5}figure{display:inline-block;margin:.5em}figcaption{font-size:.85em;color:#5a6475}"
+       "</style></head><body>\n<h1>Cohort</h1>\n<p>"
+    << studies.size() << " studies: " << n_ok << " complete, " << n_failed << " failed or not run."
+    << (g_interrupted ? " <strong>Interrupted.</strong>" : "") << " Outliers: beyond 1.5 IQR of the cohort.</p>\n"
+    << "<h2>Distributions</h2>\n" << figs.str() << "<h2>Studies</h2>\n<table><tr><th>study</th><th>status</th>";
+  for (std::size_t c = 2; c < hcols.size(); ++c) h << "<th>" << reports::html_escape(hcols[c]) << "</th>";
+  h << "<th>outlier in</th></tr>\n";
+  for (std::size_t i = 0; i < studies.size(); ++i) {
+    const Study& s = studies[i];
+    const bool ok = s.status == "ok" || s.status == "done-earlier";
+    h << "<tr class=\"" << (ok ? (outliers.count(i) ? "out" : "") : "bad") << "\"><td class=\"l\">";
+    if (ok) h << "<a href=\"" << reports::html_escape(s.id) << "/report.html\">" << reports::html_escape(s.id) << "</a>";
+    else h << reports::html_escape(s.id);
+    h << "</td><td class=\"l\">" << reports::html_escape(s.status) << (s.error.empty() ? "" : ": " + reports::html_escape(s.error)) << "</td>";
+    for (std::size_t c = 2; c < hcols.size(); ++c) h << "<td>" << reports::html_escape(c < rows[i].size() ? rows[i][c] : "") << "</td>";
+    std::string o;
+    for (const auto& n : outliers[i]) o += (o.empty() ? "" : ", ") + n;
+    h << "<td class=\"l\">" << reports::html_escape(o) << "</td></tr>\n";
+  }
+  h << "</table>\n</body></html>\n";
+  reports::write_text_atomic((out / "cohort.html").string(), h.str());
+  if (!quiet) std::cout << "batch: " << n_ok << " complete, " << n_failed << " failed or not run; " << (out / "cohort.html").string() << std::endl;
+  if (g_interrupted) return 130;
+  return n_failed ? static_cast<int>(ExitCode::BatchIncomplete) : 0;
+}
+
+}  // namespace ms::pipeline
