@@ -45,6 +45,8 @@ const cli::CommandSpec& batch_spec() {
       {{"output", "DIR", "output folder (created)", ""},
        {"jobs", "N", "studies run at once (each run also uses its own threads)", "1"},
        {"deidentify", "", "pass --deidentify to every run", ""},
+       {"aggregate-only", "", "run nothing: write the cohort files from the studies already in OUT (e.g. after a "
+                              "Snakemake or cluster run); incomplete studies are listed as failed with their log's error", ""},
        {"quiet", "", "no progress output", ""},
        {"help", "", "show this help", ""}}};
   return s;
@@ -225,9 +227,18 @@ int batch_command(const cli::Args& args) {
   const bool tty = !quiet && isatty(STDOUT_FILENO);
   const auto t0 = std::chrono::steady_clock::now();
   std::size_t next = 0, done = 0, todo = 0;
+  const bool aggregate_only = args.has("aggregate-only");
   for (auto& s : studies)
-    if (complete(out / s.id)) s.status = "done-earlier", s.exit_code = 0;
-    else ++todo;
+    if (complete(out / s.id)) {
+      s.status = "done-earlier", s.exit_code = 0;
+    } else if (aggregate_only) {
+      s.status = "failed";
+      s.error = first_error_line(out / ".logs" / (s.id + ".log"));
+      if (s.error.empty()) s.error = "no complete run in " + (out / s.id).string();
+    } else {
+      ++todo;
+    }
+  if (aggregate_only) next = studies.size();
   std::map<pid_t, std::pair<std::size_t, std::chrono::steady_clock::time_point>> running;
   auto progress = [&] {
     if (quiet) return;
