@@ -10,6 +10,10 @@
 #include <gdcmTrace.h>
 
 #include <algorithm>
+#include <cctype>
+#include <set>
+#include <fstream>
+#include <csignal>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -27,6 +31,82 @@
 namespace fs = std::filesystem;
 
 namespace ms::io::dicom {
+namespace {
+
+// GDCM asserts (aborts the process) on some malformed files, e.g. a file meta
+// group cut in the middle of an element. Two defences: the file meta group is
+// walked here first, so such a file is rejected as corrupt; and while GDCM
+// reads, SIGABRT ends the process with a clear one-line error and exit code
+// 4 (invalid input) instead of a core dump (docs/ingest.md, "Corrupt files").
+char g_reading[1024] = "";
+struct sigaction g_previous_abort;
+
+void on_gdcm_abort(int) {
+  static const char pre[] = "mandisym: error: ";
+  static const char post[] = ": corrupt DICOM: the DICOM library (GDCM) gave up on it\n";
+  (void)!::write(2, pre, sizeof pre - 1);
+  (void)!::write(2, g_reading, ::strnlen(g_reading, sizeof g_reading));
+  (void)!::write(2, post, sizeof post - 1);
+  ::_exit(4);
+}
+
+class AbortGuard {
+ public:
+  AbortGuard() {
+    struct sigaction sa {};
+    sa.sa_handler = on_gdcm_abort;
+    ::sigaction(SIGABRT, &sa, &g_previous_abort);
+  }
+  ~AbortGuard() { ::sigaction(SIGABRT, &g_previous_abort, nullptr); }
+  static void reading(const std::string& file) {
+    std::strncpy(g_reading, file.c_str(), sizeof g_reading - 1);
+    g_reading[sizeof g_reading - 1] = 0;
+  }
+  AbortGuard(const AbortGuard&) = delete;
+  AbortGuard& operator=(const AbortGuard&) = delete;
+};
+
+// False when the file has the DICOM preamble but its file meta group (0002)
+// is not a sequence of complete explicit-VR little-endian elements.
+bool meta_group_sane(const std::string& file, std::uintmax_t size) {
+  if (size < 132) return true;  // no preamble: GDCM's other paths decide
+  std::ifstream in(file, std::ios::binary);
+  char magic[4];
+  in.seekg(128);
+  if (!in.read(magic, 4) || std::memcmp(magic, "DICM", 4) != 0) return true;
+  std::uintmax_t pos = 132;
+  for (int n = 0; n < 1000; ++n) {
+    unsigned char h[8];
+    if (pos + 4 > size) return false;  // the group must end with the next group's tag
+    in.seekg(static_cast<std::streamoff>(pos));
+    if (!in.read(reinterpret_cast<char*>(h), 4)) return false;
+    const unsigned group = h[0] | (h[1] << 8);
+    if (group != 0x0002) return true;
+    if (pos + 8 > size || !in.read(reinterpret_cast<char*>(h + 4), 4)) return false;
+    const std::string vr{static_cast<char>(h[4]), static_cast<char>(h[5])};
+    if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) return false;
+    std::uintmax_t len;
+    std::uintmax_t head;
+    static const std::set<std::string> k32{"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
+    if (vr == "SQ") return false;  // never in the file meta group
+    if (k32.count(vr)) {
+      unsigned char l[4];
+      if (pos + 12 > size || !in.read(reinterpret_cast<char*>(l), 4)) return false;
+      len = static_cast<std::uintmax_t>(l[0]) | (static_cast<std::uintmax_t>(l[1]) << 8) | (static_cast<std::uintmax_t>(l[2]) << 16) |
+            (static_cast<std::uintmax_t>(l[3]) << 24);
+      head = 12;
+    } else {
+      len = static_cast<std::uintmax_t>(h[6]) | (static_cast<std::uintmax_t>(h[7]) << 8);
+      head = 8;
+    }
+    if (len == 0xFFFFFFFFu || pos + head + len > size) return false;
+    pos += head + len;
+  }
+  return false;
+}
+
+}  // namespace
+
 namespace {
 
 constexpr std::size_t kMinSlices = 8;
@@ -147,6 +227,7 @@ std::string iop_key(const Frame& f) {
 
 ScanResult scan(const std::string& path) {
   quiet_gdcm();
+  const AbortGuard guard;
   ScanResult res;
   res.path = path;
   std::vector<std::string> files;
@@ -172,9 +253,14 @@ ScanResult scan(const std::string& path) {
       if (res.first_unreadable.empty()) res.first_unreadable = file;
       continue;
     }
+    const auto size = fs::file_size(file, ec);
+    if (!ec && !meta_group_sane(file, size)) {
+      if (res.first_non_dicom.empty()) res.first_non_dicom = file;
+      continue;
+    }
+    AbortGuard::reading(file);
     gdcm::Reader r;
     r.SetFileName(file.c_str());
-    const auto size = fs::file_size(file, ec);
     // Headers only: stop in front of the pixel data (the skip set keeps GDCM
     // from loading it); the bytes left tell whether there is any.
     static const std::set<gdcm::Tag> kSkipPixels{gdcm::Tag(0x7fe0, 0x0010)};
@@ -491,6 +577,8 @@ class SilenceStderr {
 
 Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings) {
   quiet_gdcm();
+  const AbortGuard guard;
+  AbortGuard::reading(s.frames.empty() ? std::string("series") : s.frames.front().file + " (or another file of its series)");
   const Frame& f0 = s.frames[L.order.front()];
   const unsigned rows = f0.rows, cols = f0.cols;
   const std::size_t plane = static_cast<std::size_t>(rows) * cols;

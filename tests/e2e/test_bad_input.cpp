@@ -632,3 +632,31 @@ TEST(BadInput, OrientationCodeOfWrongLength) {
   // A usage error about an option value: the line names the offending value.
   expect_refused(run_on(in, t.out(), {"--orientation", "LP"}), 2, t.out(), {"'LP'"});
 }
+
+namespace {
+
+// Found by fuzzing (docs/fuzzing.md): a DICOM file whose file meta group ends
+// in the middle of an element made GDCM assert, and mandisym abort (exit
+// 134). Each cut point of a valid file meta group must give the clean
+// refusal instead, alone in a folder and as a file argument.
+TEST(BadInput, FileMetaGroupCutInsideAnElement) {
+  TempCase t;
+  std::string meta;
+  meta.append(128, '\0');
+  meta += "DICM";
+  const unsigned char group_length[] = {0x02, 0x00, 0x00, 0x00, 'U', 'L', 0x04, 0x00, 0x1c, 0x00, 0x00, 0x00};
+  const unsigned char version[] = {0x02, 0x00, 0x01, 0x00, 'O', 'B', 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x00, 0x01};
+  const unsigned char sop[] = {0x02, 0x00, 0x02, 0x00, 'U', 'I', 0x06, 0x00, '1', '.', '2', '.', '3', 0x00};
+  meta.append(reinterpret_cast<const char*>(group_length), sizeof group_length);
+  meta.append(reinterpret_cast<const char*>(version), sizeof version);
+  meta.append(reinterpret_cast<const char*>(sop), sizeof sop);
+  for (std::size_t cut : {134u, 138u, 142u, 146u, 150u, 152u, 156u, 162u}) {
+    const fs::path in = t / ("cut" + std::to_string(cut));
+    fs::create_directories(in);
+    std::ofstream(in / "slice.dcm", std::ios::binary).write(meta.data(), static_cast<std::streamsize>(cut));
+    expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
+    expect_refused(run_on(in / "slice.dcm", t.out()), 4, t.out(), {"slice.dcm"});
+  }
+}
+
+}  // namespace
