@@ -67,17 +67,16 @@ class AbortGuard {
 };
 
 // False when the file has the DICOM preamble but its file meta group (0002)
-// is not a sequence of complete explicit-VR little-endian elements.
-bool meta_group_sane(const std::string& file, std::uintmax_t size) {
-  if (size < 132) return true;  // no preamble: GDCM's other paths decide
-  std::ifstream in(file, std::ios::binary);
-  char magic[4];
-  in.seekg(128);
-  if (!in.read(magic, 4) || std::memcmp(magic, "DICM", 4) != 0) return true;
-  std::uintmax_t pos = 132;
+// is not a sequence of complete explicit-VR little-endian elements, or when
+// it has no preamble and does not start like a DICOM data set.
+// Walks explicit-VR little-endian group-0002 elements from pos: true when
+// they are complete and the group ends before the end of the file.
+bool walk_meta_group(std::ifstream& in, std::uintmax_t pos, std::uintmax_t size) {
+  static const std::set<std::string> k32{"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
   for (int n = 0; n < 1000; ++n) {
     unsigned char h[8];
     if (pos + 4 > size) return false;  // the group must end with the next group's tag
+    in.clear();
     in.seekg(static_cast<std::streamoff>(pos));
     if (!in.read(reinterpret_cast<char*>(h), 4)) return false;
     const unsigned group = h[0] | (h[1] << 8);
@@ -85,10 +84,8 @@ bool meta_group_sane(const std::string& file, std::uintmax_t size) {
     if (pos + 8 > size || !in.read(reinterpret_cast<char*>(h + 4), 4)) return false;
     const std::string vr{static_cast<char>(h[4]), static_cast<char>(h[5])};
     if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) return false;
-    std::uintmax_t len;
-    std::uintmax_t head;
-    static const std::set<std::string> k32{"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
     if (vr == "SQ") return false;  // never in the file meta group
+    std::uintmax_t len, head;
     if (k32.count(vr)) {
       unsigned char l[4];
       if (pos + 12 > size || !in.read(reinterpret_cast<char*>(l), 4)) return false;
@@ -103,6 +100,23 @@ bool meta_group_sane(const std::string& file, std::uintmax_t size) {
     pos += head + len;
   }
   return false;
+}
+
+bool meta_group_sane(const std::string& file, std::uintmax_t size) {
+  std::ifstream in(file, std::ios::binary);
+  char magic[4];
+  if (size >= 132 && in.seekg(128) && in.read(magic, 4) && std::memcmp(magic, "DICM", 4) == 0)
+    return walk_meta_group(in, 132, size);
+  // No preamble: only a data set that starts with a group 0000, 0002 or 0008
+  // tag (little or big endian) goes to GDCM; arbitrary bytes made its
+  // compatibility reader assert. A group 0002 there is checked like above.
+  unsigned char b[2] = {0xff, 0xff};
+  in.clear();
+  in.seekg(0);
+  if (size < 8 || !in.read(reinterpret_cast<char*>(b), 2)) return false;
+  const unsigned le = b[0] | (b[1] << 8), be = (b[0] << 8) | b[1];
+  if (le == 0x0002) return walk_meta_group(in, 0, size);
+  return le == 0x0000 || le == 0x0008 || be == 0x0002 || be == 0x0008;
 }
 
 }  // namespace
