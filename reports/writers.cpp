@@ -418,13 +418,18 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << "<tr><td>landmark residual RMS (mm)</td><td>" << fmt(s.reference.rms_landmark_residual_mm) << "</td></tr>\n"
     << "</table>\n";
 
-  h << "<h2>Methods</h2>\n<p>Bone threshold and connected components select the mandible (teeth included); VTK "
-       "flying edges builds its surface in patient LPS millimetres; landmarks (METHOD.md &sect;2) are extreme "
-       "points; a Ceres robust fit gives the symmetry plane and a symmetric reference configuration, refined by "
-       "mirror-ICP on the surface. The SAF score compares, through the mirror correspondence, the signed angle "
+  h << "<h2>Methods</h2>\n<p>The mandible (lower teeth included) is separated from skull, upper teeth and spine by "
+       "a marker-based watershed on the bone's depth and intensity, markers being the deep cores of dense bone, and "
+       "identified anatomically (ITK; coarse scans are segmented on interpolated working grids that vote). Its "
+       "surface comes from VTK flying edges, repaired and isotropically remeshed with CGAL, in patient LPS "
+       "millimetres. Landmarks (METHOD.md &sect;2) are geodesic extremities labelled in the frame of the mandible's "
+       "own symmetry plane, refined to sub-voxel apices. A Ceres robust fit gives the symmetry plane and a "
+       "symmetric reference configuration, refined by mirror-ICP on the surface (Huber, then Cauchy loss). The "
+       "mirror surface distance follows Cevidanes et&nbsp;al. 2011 (reflection through the plane, signed "
+       "closest-point distance). The SAF score compares, through the mirror correspondence, the signed angle "
        "between gradients of harmonic fields (cotangent Laplacian, Dirichlet disks of 2 mm at landmarks) with its "
-       "mirror configuration; the mirror surface distance follows Cevidanes et&nbsp;al. 2011 (reflection through "
-       "the plane, signed closest-point distance). The SAF and SRD definitions reconstruct Zhang (NUS, 2014).</p>\n";
+       "mirror configuration; the SAF and SRD definitions reconstruct Zhang (NUS, 2014). Details and measured "
+       "accuracy: the project's docs/ folder.</p>\n";
   h << "<h2>Provenance</h2>\n<table><tr><th>item</th><th>value</th></tr>\n";
   h << "<tr><td>command</td><td>" << E(s.command_line) << "</td></tr>\n";
   for (const auto& [k, v] : s.parameters) h << "<tr><td>" << E(k) << "</td><td>" << E(v) << "</td></tr>\n";
