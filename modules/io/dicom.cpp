@@ -66,57 +66,181 @@ class AbortGuard {
   AbortGuard& operator=(const AbortGuard&) = delete;
 };
 
-// False when the file has the DICOM preamble but its file meta group (0002)
-// is not a sequence of complete explicit-VR little-endian elements, or when
-// it has no preamble and does not start like a DICOM data set.
-// Walks explicit-VR little-endian group-0002 elements from pos: true when
-// they are complete and the group ends before the end of the file.
-bool walk_meta_group(std::ifstream& in, std::uintmax_t pos, std::uintmax_t size) {
-  static const std::set<std::string> k32{"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
-  for (int n = 0; n < 1000; ++n) {
-    unsigned char h[8];
-    if (pos + 4 > size) return false;  // the group must end with the next group's tag
+// Bounds-checked reading of the structure of a file (not of its values).
+struct ByteReader {
+  std::ifstream in;
+  std::uintmax_t size = 0;
+  bool read(std::uintmax_t pos, unsigned char* out, std::size_t n) {
+    if (pos + n > size) return false;
     in.clear();
     in.seekg(static_cast<std::streamoff>(pos));
-    if (!in.read(reinterpret_cast<char*>(h), 4)) return false;
-    const unsigned group = h[0] | (h[1] << 8);
-    if (group != 0x0002) return true;
-    if (pos + 8 > size || !in.read(reinterpret_cast<char*>(h + 4), 4)) return false;
-    const std::string vr{static_cast<char>(h[4]), static_cast<char>(h[5])};
-    if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) return false;
-    if (vr == "SQ") return false;  // never in the file meta group
-    std::uintmax_t len, head;
-    if (k32.count(vr)) {
-      unsigned char l[4];
-      if (pos + 12 > size || !in.read(reinterpret_cast<char*>(l), 4)) return false;
-      len = static_cast<std::uintmax_t>(l[0]) | (static_cast<std::uintmax_t>(l[1]) << 8) | (static_cast<std::uintmax_t>(l[2]) << 16) |
-            (static_cast<std::uintmax_t>(l[3]) << 24);
-      head = 12;
-    } else {
-      len = static_cast<std::uintmax_t>(h[6]) | (static_cast<std::uintmax_t>(h[7]) << 8);
-      head = 8;
+    return static_cast<bool>(in.read(reinterpret_cast<char*>(out), static_cast<std::streamsize>(n)));
+  }
+};
+
+std::uint32_t le16(const unsigned char* b) { return b[0] | (b[1] << 8); }
+std::uint32_t le32(const unsigned char* b) {
+  return static_cast<std::uint32_t>(b[0]) | (static_cast<std::uint32_t>(b[1]) << 8) | (static_cast<std::uint32_t>(b[2]) << 16) |
+         (static_cast<std::uint32_t>(b[3]) << 24);
+}
+bool long_vr(const char* vr) {
+  static const std::set<std::string> k32{"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
+  return k32.count(std::string(vr, 2)) > 0;
+}
+
+// Walks explicit-VR little-endian group-0002 elements from pos: true when
+// they are complete and the group ends before the end of the file. end: where
+// the group ends; ts: the transfer syntax UID (0002,0010).
+bool walk_meta_group(ByteReader& r, std::uintmax_t pos, std::uintmax_t* end, std::string* ts) {
+  for (int n = 0; n < 1000; ++n) {
+    unsigned char h[12];
+    if (!r.read(pos, h, 4)) return false;  // the group must end with the next group's tag
+    if (le16(h) != 0x0002) {
+      *end = pos;
+      return true;
     }
-    if (len == 0xFFFFFFFFu || pos + head + len > size) return false;
+    if (!r.read(pos + 4, h + 4, 4)) return false;
+    const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
+    if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) return false;
+    if (vr[0] == 'S' && vr[1] == 'Q') return false;  // never in the file meta group
+    std::uintmax_t len, head;
+    if (long_vr(vr)) {
+      if (!r.read(pos + 8, h + 8, 4)) return false;
+      len = le32(h + 8), head = 12;
+    } else {
+      len = le16(h + 6), head = 8;
+    }
+    if (len == 0xFFFFFFFFu || pos + head + len > r.size) return false;
+    if (le16(h + 2) == 0x0010 && len < 128) {  // transfer syntax UID
+      unsigned char v[128];
+      if (!r.read(pos + head, v, static_cast<std::size_t>(len))) return false;
+      ts->assign(reinterpret_cast<const char*>(v), static_cast<std::size_t>(len));
+      while (!ts->empty() && (ts->back() == '\0' || ts->back() == ' ')) ts->pop_back();
+    }
     pos += head + len;
   }
   return false;
 }
 
+// Walks the elements of a little-endian data set from pos up to the pixel
+// data (top level) or to the end of an item (nested): every declared length
+// must fit in the file, so GDCM never allocates for a value the file cannot
+// hold (a 1.7 kB file declared a 4 GB value). Undefined-length sequences and
+// items are followed to their delimiters. Implicit VR: sequences are seen
+// only when their length is undefined.
+bool walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit) {
+  if (depth > 16) return false;
+  for (int n = 0; n < 1000000; ++n) {
+    unsigned char h[12];
+    if (pos >= limit) return !in_item || pos == limit;
+    if (!r.read(pos, h, 8)) return !in_item && pos + 8 > r.size && depth == 0;  // trailing bytes at top level
+    const std::uint32_t group = le16(h), element = le16(h + 2);
+    if (group == 0xFFFE) {
+      if (element == 0xE00D && in_item) {  // item delimitation
+        pos += 8;
+        return true;
+      }
+      return false;
+    }
+    if (depth == 0 && group == 0x7FE0 && element == 0x0010) return true;  // pixel data: GDCM stops here
+    std::uintmax_t len, head;
+    bool sq = false;
+    if (explicit_vr) {
+      const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
+      if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) return false;
+      if (long_vr(vr)) {
+        if (!r.read(pos + 8, h + 8, 4)) return false;
+        len = le32(h + 8), head = 12;
+      } else {
+        len = le16(h + 6), head = 8;
+      }
+      sq = vr[0] == 'S' && vr[1] == 'Q';
+    } else {
+      len = le32(h + 4), head = 8;
+    }
+    pos += head;
+    if (len == 0xFFFFFFFFu) {
+      // Undefined length: a sequence of items up to (FFFE,E0DD). (An
+      // undefined-length UN value is encoded as implicit VR.)
+      const bool inner_explicit = explicit_vr && !(h[4] == 'U' && h[5] == 'N');
+      for (int k = 0; k < 100000; ++k) {
+        unsigned char it[8];
+        if (!r.read(pos, it, 8) || le16(it) != 0xFFFE) return false;
+        const std::uint32_t ie = le16(it + 2), il = le32(it + 4);
+        pos += 8;
+        if (ie == 0xE0DD) break;  // sequence delimitation
+        if (ie != 0xE000) return false;
+        if (il == 0xFFFFFFFFu) {
+          if (!walk_data_set(r, pos, inner_explicit, depth + 1, true, r.size)) return false;
+        } else {
+          if (pos + il > r.size) return false;
+          std::uintmax_t p = pos;
+          if (!walk_data_set(r, p, inner_explicit, depth + 1, true, pos + il)) return false;
+          pos += il;
+        }
+        if (k == 99999) return false;
+      }
+      continue;
+    }
+    if (pos + len > r.size) return false;
+    if (sq) {  // defined-length sequence: its items must fit in it
+      const std::uintmax_t end = pos + len;
+      while (pos < end) {
+        unsigned char it[8];
+        if (!r.read(pos, it, 8) || le16(it) != 0xFFFE || le16(it + 2) != 0xE000) return false;
+        const std::uint32_t il = le32(it + 4);
+        pos += 8;
+        if (il == 0xFFFFFFFFu) {
+          if (!walk_data_set(r, pos, explicit_vr, depth + 1, true, end)) return false;
+        } else {
+          if (pos + il > end) return false;
+          std::uintmax_t p = pos;
+          if (!walk_data_set(r, p, explicit_vr, depth + 1, true, pos + il)) return false;
+          pos += il;
+        }
+      }
+      continue;
+    }
+    pos += len;
+  }
+  return false;
+}
+
+// False when the file cannot be handed to GDCM safely: it has the DICOM
+// preamble but its file meta group (0002) is not a sequence of complete
+// elements; or it has no preamble and does not start like a DICOM data set;
+// or a declared length in its data set runs past the end of the file.
 bool meta_group_sane(const std::string& file, std::uintmax_t size) {
-  std::ifstream in(file, std::ios::binary);
-  char magic[4];
-  if (size >= 132 && in.seekg(128) && in.read(magic, 4) && std::memcmp(magic, "DICM", 4) == 0)
-    return walk_meta_group(in, 132, size);
-  // No preamble: only a data set that starts with a group 0000, 0002 or 0008
-  // tag (little or big endian) goes to GDCM; arbitrary bytes made its
-  // compatibility reader assert. A group 0002 there is checked like above.
-  unsigned char b[2] = {0xff, 0xff};
-  in.clear();
-  in.seekg(0);
-  if (size < 8 || !in.read(reinterpret_cast<char*>(b), 2)) return false;
-  const unsigned le = b[0] | (b[1] << 8), be = (b[0] << 8) | b[1];
-  if (le == 0x0002) return walk_meta_group(in, 0, size);
-  return le == 0x0000 || le == 0x0008 || be == 0x0002 || be == 0x0008;
+  ByteReader r;
+  r.in.open(file, std::ios::binary);
+  r.size = size;
+  unsigned char magic[4];
+  std::uintmax_t pos = 0;
+  std::string ts;
+  if (r.read(128, magic, 4) && std::memcmp(magic, "DICM", 4) == 0) {
+    if (!walk_meta_group(r, 132, &pos, &ts)) return false;
+  } else {
+    // No preamble: only a data set that starts with a group 0008 tag (little
+    // or big endian) or a little-endian file meta group goes to GDCM;
+    // arbitrary bytes made its compatibility reader assert.
+    unsigned char b[2];
+    if (size < 8 || !r.read(0, b, 2)) return false;
+    const unsigned le = le16(b), be = (b[0] << 8) | b[1];
+    if (le == 0x0002) {
+      if (!walk_meta_group(r, 0, &pos, &ts)) return false;
+    } else if (!(le == 0x0008 || be == 0x0008)) {
+      return false;
+    }
+  }
+  // The data set: little endian implicit (1.2.840.10008.1.2, also the default
+  // without a meta group) or explicit (everything else but big endian and
+  // deflate, which GDCM checks itself).
+  if (ts == "1.2.840.10008.1.2.2" || ts == "1.2.840.10008.1.2.1.99") return true;
+  unsigned char first[6];
+  bool explicit_vr = ts.empty() ? false : ts != "1.2.840.10008.1.2";
+  if (ts.empty() && r.read(pos, first, 6))  // no meta group: look at the first element
+    explicit_vr = std::isupper(first[4]) && std::isupper(first[5]);
+  return walk_data_set(r, pos, explicit_vr, 0, false, size);
 }
 
 }  // namespace
