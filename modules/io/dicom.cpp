@@ -127,29 +127,34 @@ bool walk_meta_group(ByteReader& r, std::uintmax_t pos, std::uintmax_t* end, std
 // must fit in the file, so GDCM never allocates for a value the file cannot
 // hold (a 1.7 kB file declared a 4 GB value). Undefined-length sequences and
 // items are followed to their delimiters. Implicit VR: sequences are seen
-// only when their length is undefined.
-bool walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit) {
-  if (depth > 16) return false;
+// only when their length is undefined. Only a length past the end of the
+// file counts against it (TooLong); anything else unexpected (a private
+// element with an odd VR, say) stops the walk and leaves the file to GDCM.
+enum class Walk { Ok, TooLong, Unsure };
+
+Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit) {
+  if (depth > 16) return Walk::Unsure;
   for (int n = 0; n < 1000000; ++n) {
     unsigned char h[12];
-    if (pos >= limit) return !in_item || pos == limit;
-    if (!r.read(pos, h, 8)) return !in_item && pos + 8 > r.size && depth == 0;  // trailing bytes at top level
+    if (pos >= limit) return Walk::Ok;
+    if (!r.read(pos, h, 8)) return depth == 0 ? Walk::Ok : Walk::TooLong;  // a nested item must be complete
     const std::uint32_t group = le16(h), element = le16(h + 2);
     if (group == 0xFFFE) {
       if (element == 0xE00D && in_item) {  // item delimitation
         pos += 8;
-        return true;
+        return Walk::Ok;
       }
-      return false;
+      return Walk::Unsure;
     }
-    if (depth == 0 && group == 0x7FE0 && element == 0x0010) return true;  // pixel data: GDCM stops here
+    if (depth == 0 && group == 0x7FE0 && element == 0x0010) return Walk::Ok;  // pixel data: GDCM stops here
     std::uintmax_t len, head;
     bool sq = false;
     if (explicit_vr) {
       const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
-      if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) return false;
-      if (long_vr(vr)) {
-        if (!r.read(pos + 8, h + 8, 4)) return false;
+      if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) {
+        len = le32(h + 4), head = 8;  // no valid VR: GDCM reads this element as implicit VR
+      } else if (long_vr(vr)) {
+        if (!r.read(pos + 8, h + 8, 4)) return Walk::TooLong;
         len = le32(h + 8), head = 12;
       } else {
         len = le16(h + 6), head = 8;
@@ -163,39 +168,54 @@ bool walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
       // Undefined length: a sequence of items up to (FFFE,E0DD). (An
       // undefined-length UN value is encoded as implicit VR.)
       const bool inner_explicit = explicit_vr && !(h[4] == 'U' && h[5] == 'N');
+      // Encapsulated pixel data (e.g. a compressed icon image nested in a
+      // sequence): its items are fragments of a byte stream, not data sets.
+      const bool fragments = group == 0x7FE0 && element == 0x0010;
       for (int k = 0; k < 100000; ++k) {
         unsigned char it[8];
-        if (!r.read(pos, it, 8) || le16(it) != 0xFFFE) return false;
+        if (!r.read(pos, it, 8)) return Walk::TooLong;
+        if (le16(it) != 0xFFFE) return Walk::Unsure;
         const std::uint32_t ie = le16(it + 2), il = le32(it + 4);
         pos += 8;
         if (ie == 0xE0DD) break;  // sequence delimitation
-        if (ie != 0xE000) return false;
+        if (ie != 0xE000) return Walk::Unsure;
+        if (fragments) {
+          if (il == 0xFFFFFFFFu) return Walk::Unsure;
+          if (pos + il > r.size) return Walk::TooLong;
+          pos += il;
+          continue;
+        }
         if (il == 0xFFFFFFFFu) {
-          if (!walk_data_set(r, pos, inner_explicit, depth + 1, true, r.size)) return false;
+          const Walk w = walk_data_set(r, pos, inner_explicit, depth + 1, true, r.size);
+          if (w != Walk::Ok) return w;
         } else {
-          if (pos + il > r.size) return false;
+          if (pos + il > r.size) return Walk::TooLong;
           std::uintmax_t p = pos;
-          if (!walk_data_set(r, p, inner_explicit, depth + 1, true, pos + il)) return false;
+          const Walk w = walk_data_set(r, p, inner_explicit, depth + 1, true, pos + il);
+          if (w != Walk::Ok) return w;
           pos += il;
         }
-        if (k == 99999) return false;
+        if (k == 99999) return Walk::Unsure;
       }
       continue;
     }
-    if (pos + len > r.size) return false;
+    if (pos + len > r.size) return Walk::TooLong;
     if (sq) {  // defined-length sequence: its items must fit in it
       const std::uintmax_t end = pos + len;
       while (pos < end) {
         unsigned char it[8];
-        if (!r.read(pos, it, 8) || le16(it) != 0xFFFE || le16(it + 2) != 0xE000) return false;
+        if (!r.read(pos, it, 8)) return Walk::TooLong;
+        if (le16(it) != 0xFFFE || le16(it + 2) != 0xE000) return Walk::Unsure;
         const std::uint32_t il = le32(it + 4);
         pos += 8;
         if (il == 0xFFFFFFFFu) {
-          if (!walk_data_set(r, pos, explicit_vr, depth + 1, true, end)) return false;
+          const Walk w = walk_data_set(r, pos, explicit_vr, depth + 1, true, end);
+          if (w != Walk::Ok) return w;
         } else {
-          if (pos + il > end) return false;
+          if (pos + il > end) return Walk::TooLong;
           std::uintmax_t p = pos;
-          if (!walk_data_set(r, p, explicit_vr, depth + 1, true, pos + il)) return false;
+          const Walk w = walk_data_set(r, p, explicit_vr, depth + 1, true, pos + il);
+          if (w != Walk::Ok) return w;
           pos += il;
         }
       }
@@ -203,7 +223,7 @@ bool walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
     }
     pos += len;
   }
-  return false;
+  return Walk::Unsure;
 }
 
 // False when the file cannot be handed to GDCM safely: it has the DICOM
@@ -240,7 +260,7 @@ bool meta_group_sane(const std::string& file, std::uintmax_t size) {
   bool explicit_vr = ts.empty() ? false : ts != "1.2.840.10008.1.2";
   if (ts.empty() && r.read(pos, first, 6))  // no meta group: look at the first element
     explicit_vr = std::isupper(first[4]) && std::isupper(first[5]);
-  return walk_data_set(r, pos, explicit_vr, 0, false, size);
+  return walk_data_set(r, pos, explicit_vr, 0, false, size) != Walk::TooLong;
 }
 
 }  // namespace
