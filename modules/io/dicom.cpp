@@ -130,7 +130,7 @@ bool walk_meta_group(ByteReader& r, std::uintmax_t pos, std::uintmax_t* end, std
 // only when their length is undefined. Only a length past the end of the
 // file counts against it (TooLong); anything else unexpected (a private
 // element with an odd VR, say) stops the walk and leaves the file to GDCM.
-enum class Walk { Ok, TooLong, Unsure };
+enum class Walk { Ok, TooLong, Unsure };  // TooLong: refuse the file (a length past its end, a misplaced delimiter)
 
 Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit) {
   if (depth > 16) return Walk::Unsure;
@@ -144,7 +144,9 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
         pos += 8;
         return Walk::Ok;
       }
-      return Walk::Unsure;
+      // A delimiter or item where an element belongs: GDCM asserts on it
+      // (found by fuzzing), so the file is refused here.
+      return Walk::TooLong;
     }
     if (depth == 0 && group == 0x7FE0 && element == 0x0010) return Walk::Ok;  // pixel data: GDCM stops here
     std::uintmax_t len, head;
