@@ -316,11 +316,7 @@ int batch_command(const cli::Args& args) {
       rows[i] = split_csv_line(r);
     }
   }
-  auto q = [](const std::string& x) {
-    std::string o = "\"";
-    for (char c : x) o += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return o + "\"";
-  };
+  const auto q = reports::csv_quote;
   const auto hcols = split_csv_line(header.empty() ? reports::csv_header().substr(0, reports::csv_header().size() - 1) : header);
   csv << "id,status,exit_code,error";
   for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << hcols[c];  // skip study,status

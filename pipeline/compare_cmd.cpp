@@ -7,6 +7,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "asymmetry/measures.h"
 #include "core/error.h"
 #include "core/json.h"
 #include "geometry/mesh_geometry.h"
@@ -134,17 +135,9 @@ int compare_command(const cli::Args& args) {
   std::vector<double> change(aligned.vertices.size());
   for (std::size_t i = 0; i < change.size(); ++i) change[i] = geometry::signed_distance(pre_index, pre_normals, aligned.vertices[i]);
   surface::write_vtp(aligned, {{"change_mm", change}}, (out / "post_aligned.vtp").string());
-  double mean_abs = 0, max_out = 0, max_in = 0;
-  std::vector<double> absd;
-  for (double d : change) {
-    mean_abs += std::abs(d);
-    max_out = std::max(max_out, d);
-    max_in = std::max(max_in, -d);
-    absd.push_back(std::abs(d));
-  }
-  mean_abs /= std::max<std::size_t>(1, change.size());
-  std::sort(absd.begin(), absd.end());
-  const double p95 = absd.empty() ? 0.0 : absd[static_cast<std::size_t>(0.95 * static_cast<double>(absd.size() - 1))];
+  // Area-weighted, like the mirror-distance statistics of a run.
+  const asymmetry::DistanceStats cs = asymmetry::distance_stats(change, asymmetry::vertex_areas(aligned));
+  const double mean_abs = cs.mean_abs, p95 = cs.p95, max_out = cs.max_outward, max_in = cs.max_inward;
   const double angle = std::acos(std::clamp((al.transform.R[0] + al.transform.R[4] + al.transform.R[8] - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
 
   // Scores side by side.

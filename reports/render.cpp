@@ -3,13 +3,11 @@
 
 #include <vtkActor.h>
 #include <vtkCamera.h>
-#include <vtkCellArray.h>
 #include <vtkDoubleArray.h>
 #include <vtkLookupTable.h>
 #include <vtkPNGWriter.h>
 #include <vtkPlaneSource.h>
 #include <vtkPointData.h>
-#include <vtkPoints.h>
 #include <vtkPolyData.h>
 #include <vtkPolyDataMapper.h>
 #include <vtkPolyDataNormals.h>
@@ -28,6 +26,7 @@
 #include <filesystem>
 
 #include "reports/display.h"
+#include "surface/vtk_mesh.h"
 
 namespace ms::reports {
 namespace {
@@ -72,17 +71,7 @@ RenderedViews render_views(const Mesh& mesh, const std::vector<double>& values, 
   }
   if (!ensure_display(&out.error)) return out;
 
-  auto pts = Ptr<vtkPoints>::New();
-  pts->SetDataTypeToDouble();
-  for (const auto& v : mesh.vertices) pts->InsertNextPoint(v.data());
-  auto cells = Ptr<vtkCellArray>::New();
-  for (const auto& f : mesh.faces) {
-    const vtkIdType ids[3] = {f[0], f[1], f[2]};
-    cells->InsertNextCell(3, ids);
-  }
-  auto pd = Ptr<vtkPolyData>::New();
-  pd->SetPoints(pts);
-  pd->SetPolys(cells);
+  auto pd = surface::to_polydata(mesh);
   const bool coloured = values.size() == mesh.vertices.size();
   if (coloured) {
     auto arr = Ptr<vtkDoubleArray>::New();

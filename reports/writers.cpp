@@ -265,17 +265,19 @@ std::string plane_markup(const Plane& plane, double size_mm) {
   return root.dump(2) + "\n";
 }
 
+std::string csv_quote(const std::string& x) {
+  std::string o = "\"";
+  for (char c : x) o += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return o + "\"";
+}
+
 std::string csv_header() {
   return "study,status,saf_score,saf_correspondence_free,mirror_mean_mm,mirror_rms_mm,mirror_p95_mm,mirror_max_mm,"
          "ramus_height_diff_mm,body_length_diff_mm,gonial_angle_diff_deg,truncated,warnings\n";
 }
 
 std::string csv_row(const RunSummary& s, const std::string& status) {
-  auto q = [](const std::string& x) {
-    std::string o = "\"";
-    for (char c : x) o += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return o + "\"";
-  };
+  const auto q = csv_quote;
   auto b = [&](const char* n) {
     auto it = s.bilateral.find(n);
     return it == s.bilateral.end() ? std::string() : fmt(it->second.diff, 3);

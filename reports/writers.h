@@ -19,6 +19,8 @@ std::string plane_markup(const Plane& plane, double size_mm);  // Slicer Plane, 
 std::string report_html(const RunSummary& s, const std::vector<std::string>& figures,
                         const std::vector<std::string>& views = {}, const std::string& views_note = "");
 std::string csv_header();
+// A CSV field in double quotes, inner quotes doubled.
+std::string csv_quote(const std::string& field);
 std::string csv_row(const RunSummary& s, const std::string& status);
 
 // data: URI of a PNG file (for self-contained HTML); empty if unreadable.

@@ -6,6 +6,7 @@
 #include <CGAL/Simple_cartesian.h>
 
 #include <cmath>
+#include <algorithm>
 #include <limits>
 #include <queue>
 
@@ -105,37 +106,67 @@ int nearest_vertex(const Mesh& m, const Vec3& p) {
   return best;
 }
 
-std::vector<int> geodesic_voronoi(const Mesh& m, const std::vector<int>& seeds, std::vector<double>* dist_out) {
-  const std::size_t n = m.vertices.size();
+EdgeGraph edge_graph(const Mesh& mesh) {
+  const std::size_t n = mesh.vertices.size();
   std::vector<std::vector<int>> adj(n);
-  for (const auto& f : m.faces)
+  for (const auto& f : mesh.faces)
     for (int e = 0; e < 3; ++e) {
-      adj[f[e]].push_back(f[(e + 1) % 3]);
-      adj[f[(e + 1) % 3]].push_back(f[e]);
+      const int a = f[e], b = f[(e + 1) % 3];
+      adj[static_cast<std::size_t>(a)].push_back(b);
+      adj[static_cast<std::size_t>(b)].push_back(a);
     }
-  std::vector<double> dist(n, std::numeric_limits<double>::infinity());
-  std::vector<int> owner(n, -1);
+  EdgeGraph g;
+  g.start.assign(n + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    auto& l = adj[i];
+    std::sort(l.begin(), l.end());
+    l.erase(std::unique(l.begin(), l.end()), l.end());
+    g.start[i + 1] = g.start[i] + l.size();
+  }
+  g.nbr.reserve(g.start[n]);
+  g.len.reserve(g.start[n]);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int j : adj[i]) {
+      g.nbr.push_back(j);
+      g.len.push_back(distance(mesh.vertices[i], mesh.vertices[static_cast<std::size_t>(j)]));
+    }
+  return g;
+}
+
+void dijkstra(const EdgeGraph& g, const std::vector<int>& sources, double radius, std::vector<double>& dist,
+              std::vector<int>* owner, std::vector<int>* touched) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
   using Item = std::pair<double, int>;
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> q;
-  for (std::size_t s = 0; s < seeds.size(); ++s) {
-    if (seeds[s] < 0) continue;
-    dist[seeds[s]] = 0;
-    owner[seeds[s]] = static_cast<int>(s);
-    q.push({0.0, seeds[s]});
+  for (std::size_t s = 0; s < sources.size(); ++s) {
+    const int v = sources[s];
+    if (v < 0) continue;
+    if (touched && dist[static_cast<std::size_t>(v)] == kInf) touched->push_back(v);
+    dist[static_cast<std::size_t>(v)] = 0;
+    if (owner) (*owner)[static_cast<std::size_t>(v)] = static_cast<int>(s);
+    q.push({0.0, v});
   }
   while (!q.empty()) {
     const auto [d, v] = q.top();
     q.pop();
-    if (d > dist[v]) continue;
-    for (int w : adj[v]) {
-      const double nd = d + distance(m.vertices[v], m.vertices[w]);
-      if (nd < dist[w]) {
-        dist[w] = nd;
-        owner[w] = owner[v];
-        q.push({nd, w});
-      }
+    if (d > dist[static_cast<std::size_t>(v)]) continue;
+    for (std::size_t e = g.start[static_cast<std::size_t>(v)]; e < g.start[static_cast<std::size_t>(v) + 1]; ++e) {
+      const int w = g.nbr[e];
+      const double nd = d + g.len[e];
+      if (nd > radius || nd >= dist[static_cast<std::size_t>(w)]) continue;
+      if (touched && dist[static_cast<std::size_t>(w)] == kInf) touched->push_back(w);
+      dist[static_cast<std::size_t>(w)] = nd;
+      if (owner) (*owner)[static_cast<std::size_t>(w)] = (*owner)[static_cast<std::size_t>(v)];
+      q.push({nd, w});
     }
   }
+}
+
+std::vector<int> geodesic_voronoi(const Mesh& m, const std::vector<int>& seeds, std::vector<double>* dist_out) {
+  const std::size_t n = m.vertices.size();
+  std::vector<double> dist(n, std::numeric_limits<double>::infinity());
+  std::vector<int> owner(n, -1);
+  dijkstra(edge_graph(m), seeds, std::numeric_limits<double>::infinity(), dist, &owner);
   if (dist_out) *dist_out = std::move(dist);
   return owner;
 }

@@ -39,6 +39,22 @@ std::vector<Vec3> vertex_normals(const Mesh& mesh);
 
 int nearest_vertex(const Mesh& mesh, const Vec3& p);
 
+// Vertex graph of a mesh (compressed rows, unique neighbours) with edge
+// lengths in mm, built once for repeated Dijkstra runs.
+struct EdgeGraph {
+  std::vector<std::size_t> start;  // vertex v's neighbours: nbr[start[v] .. start[v + 1])
+  std::vector<int> nbr;
+  std::vector<double> len;
+};
+EdgeGraph edge_graph(const Mesh& mesh);
+
+// Multi-source Dijkstra on the edge graph up to radius (mm). dist (size n)
+// must hold +inf where nothing has been reached; sources start at 0. owner
+// (optional, size n) receives the index in sources of the nearest source;
+// touched (optional) the vertices reached.
+void dijkstra(const EdgeGraph& graph, const std::vector<int>& sources, double radius, std::vector<double>& dist,
+              std::vector<int>* owner = nullptr, std::vector<int>* touched = nullptr);
+
 // Geodesic (edge-graph Dijkstra) Voronoi partition: each vertex gets the index
 // of the nearest seed vertex; distances returned in dist (mm).
 std::vector<int> geodesic_voronoi(const Mesh& mesh, const std::vector<int>& seed_vertices, std::vector<double>* dist = nullptr);

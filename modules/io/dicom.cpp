@@ -232,7 +232,7 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
 // preamble but its file meta group (0002) is not a sequence of complete
 // elements; or it has no preamble and does not start like a DICOM data set;
 // or a declared length in its data set runs past the end of the file.
-bool meta_group_sane(const std::string& file, std::uintmax_t size) {
+bool structure_ok(const std::string& file, std::uintmax_t size) {
   ByteReader r;
   r.in.open(file, std::ios::binary);
   r.size = size;
@@ -414,7 +414,7 @@ ScanResult scan(const std::string& path) {
       continue;
     }
     const auto size = fs::file_size(file, ec);
-    if (!ec && !meta_group_sane(file, size)) {
+    if (!ec && !structure_ok(file, size)) {
       if (res.first_non_dicom.empty()) res.first_non_dicom = file;
       continue;
     }
@@ -734,6 +734,12 @@ class SilenceStderr {
 };
 
 }  // namespace
+
+bool safe_to_parse(const std::string& file) {
+  std::error_code ec;
+  const auto size = fs::file_size(file, ec);
+  return !ec && structure_ok(file, size);
+}
 
 Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings) {
   quiet_gdcm();

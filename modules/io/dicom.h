@@ -82,6 +82,13 @@ struct Layout {
 // for unreadable or non-DICOM files; they are counted.
 ScanResult scan(const std::string& path);
 
+// Whether a file's structure can be handed to GDCM (which asserts, or
+// allocates whatever a length declares, on some malformed files): a complete
+// file meta group, a data-set start where there is no preamble, and every
+// declared length up to the pixel data within the file. scan() skips files
+// that fail it as not DICOM.
+bool safe_to_parse(const std::string& file);
+
 // Geometry checks of one series (no pixel data read).
 Layout analyse(const Series& series);
 

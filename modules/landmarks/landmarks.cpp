@@ -6,6 +6,7 @@
 #include <queue>
 #include <array>
 
+#include "geometry/mesh_geometry.h"
 #include "reference/reference.h"
 
 namespace ms::landmarks {
@@ -13,61 +14,11 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Vertex graph of the mesh (compressed rows), edge weights = lengths in mm.
-struct Graph {
-  std::vector<std::size_t> start;  // size n + 1
-  std::vector<int> nbr;
-  std::vector<double> len;
-};
+using geometry::EdgeGraph;
+using Graph = EdgeGraph;
 
-Graph build_graph(const Mesh& mesh) {
-  const std::size_t n = mesh.vertices.size();
-  std::vector<std::vector<int>> adj(n);
-  for (const auto& f : mesh.faces)
-    for (int e = 0; e < 3; ++e) {
-      const int a = f[e], b = f[(e + 1) % 3];
-      adj[a].push_back(b);
-      adj[b].push_back(a);
-    }
-  Graph g;
-  g.start.assign(n + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    auto& l = adj[i];
-    std::sort(l.begin(), l.end());
-    l.erase(std::unique(l.begin(), l.end()), l.end());
-    g.start[i + 1] = g.start[i] + l.size();
-  }
-  g.nbr.reserve(g.start[n]);
-  g.len.reserve(g.start[n]);
-  for (std::size_t i = 0; i < n; ++i)
-    for (int j : adj[i]) {
-      g.nbr.push_back(j);
-      g.len.push_back(norm(mesh.vertices[i] - mesh.vertices[static_cast<std::size_t>(j)]));
-    }
-  return g;
-}
-
-// Edge-graph geodesic distances from source, up to radius (inf beyond).
-// When touched is given, it receives the vertices reached.
 void dijkstra(const Graph& g, int source, double radius, std::vector<double>& dist, std::vector<int>* touched = nullptr) {
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> q;
-  dist[static_cast<std::size_t>(source)] = 0;
-  q.push({0.0, source});
-  if (touched) touched->push_back(source);
-  while (!q.empty()) {
-    const auto [d, v] = q.top();
-    q.pop();
-    if (d > dist[static_cast<std::size_t>(v)]) continue;
-    for (std::size_t e = g.start[static_cast<std::size_t>(v)]; e < g.start[static_cast<std::size_t>(v) + 1]; ++e) {
-      const int w = g.nbr[e];
-      const double nd = d + g.len[e];
-      if (nd > radius || nd >= dist[static_cast<std::size_t>(w)]) continue;
-      if (touched && dist[static_cast<std::size_t>(w)] == kInf) touched->push_back(w);
-      dist[static_cast<std::size_t>(w)] = nd;
-      q.push({nd, w});
-    }
-  }
+  geometry::dijkstra(g, {source}, radius, dist, nullptr, touched);
 }
 
 // Vertices within radius of source (geodesic), reusing a scratch buffer.
@@ -264,7 +215,7 @@ Result detect(const Mesh& mesh, const Options& opt) {
   }
 
   // 2. Geodesic extremities (METHOD.md §2).
-  const Graph g = build_graph(mesh);
+  const Graph g = geometry::edge_graph(mesh);
   const std::vector<double> agd = average_geodesic_distance(g, n, opt.agd_samples);
   const std::vector<int> ext = extremities(g, agd, opt.extremity_radius_mm);
   for (int e : ext) r.extremities.push_back(V[static_cast<std::size_t>(e)]);

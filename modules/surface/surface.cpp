@@ -1,4 +1,5 @@
 #include "surface/surface.h"
+#include "surface/vtk_mesh.h"
 
 #include <vtkCellArray.h>
 #include <vtkCleanPolyData.h>
@@ -33,22 +34,6 @@ namespace {
 template <class T>
 using Ptr = vtkSmartPointer<T>;
 
-vtkSmartPointer<vtkPolyData> to_vtk(const Mesh& m) {
-  auto pts = Ptr<vtkPoints>::New();
-  pts->SetDataTypeToDouble();
-  pts->SetNumberOfPoints(static_cast<vtkIdType>(m.vertices.size()));
-  for (std::size_t i = 0; i < m.vertices.size(); ++i) pts->SetPoint(static_cast<vtkIdType>(i), m.vertices[i].data());
-  auto cells = Ptr<vtkCellArray>::New();
-  for (const auto& f : m.faces) {
-    const vtkIdType ids[3] = {f[0], f[1], f[2]};
-    cells->InsertNextCell(3, ids);
-  }
-  auto pd = Ptr<vtkPolyData>::New();
-  pd->SetPoints(pts);
-  pd->SetPolys(cells);
-  return pd;
-}
-
 Mesh from_vtk(vtkPolyData* pd) {
   Mesh m;
   m.vertices.resize(static_cast<std::size_t>(pd->GetNumberOfPoints()));
@@ -63,6 +48,22 @@ Mesh from_vtk(vtkPolyData* pd) {
 }
 
 }  // namespace
+
+vtkSmartPointer<vtkPolyData> to_polydata(const Mesh& m) {
+  auto pts = Ptr<vtkPoints>::New();
+  pts->SetDataTypeToDouble();
+  pts->SetNumberOfPoints(static_cast<vtkIdType>(m.vertices.size()));
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) pts->SetPoint(static_cast<vtkIdType>(i), m.vertices[i].data());
+  auto cells = Ptr<vtkCellArray>::New();
+  for (const auto& f : m.faces) {
+    const vtkIdType ids[3] = {f[0], f[1], f[2]};
+    cells->InsertNextCell(3, ids);
+  }
+  auto pd = Ptr<vtkPolyData>::New();
+  pd->SetPoints(pts);
+  pd->SetPolys(cells);
+  return pd;
+}
 
 MeshStats measure(const Mesh& m) {
   MeshStats s;
@@ -196,7 +197,7 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
 }
 
 void write_vtp(const Mesh& mesh, const PointArrays& arrays, const std::string& path) {
-  auto pd = to_vtk(mesh);
+  auto pd = to_polydata(mesh);
   for (const auto& [name, values] : arrays) {
     if (values.size() != mesh.vertices.size())
       throw Error(ExitCode::Internal, "write_vtp: array " + name + " has the wrong length");
@@ -216,7 +217,7 @@ void write_vtp(const Mesh& mesh, const PointArrays& arrays, const std::string& p
 void write_stl(const Mesh& mesh, const std::string& path) {
   auto w = Ptr<vtkSTLWriter>::New();
   w->SetFileName(path.c_str());
-  w->SetInputData(to_vtk(mesh));
+  w->SetInputData(to_polydata(mesh));
   w->SetFileTypeToBinary();
   if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write STL");
 }
@@ -224,7 +225,7 @@ void write_stl(const Mesh& mesh, const std::string& path) {
 void write_ply(const Mesh& mesh, const std::string& path) {
   auto w = Ptr<vtkPLYWriter>::New();
   w->SetFileName(path.c_str());
-  w->SetInputData(to_vtk(mesh));
+  w->SetInputData(to_polydata(mesh));
   w->SetFileTypeToBinary();
   if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write PLY");
 }

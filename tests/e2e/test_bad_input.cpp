@@ -641,15 +641,9 @@ namespace {
 // refusal instead, alone in a folder and as a file argument.
 TEST(BadInput, FileMetaGroupCutInsideAnElement) {
   TempCase t;
-  std::string meta;
-  meta.append(128, '\0');
-  meta += "DICM";
-  const unsigned char group_length[] = {0x02, 0x00, 0x00, 0x00, 'U', 'L', 0x04, 0x00, 0x1c, 0x00, 0x00, 0x00};
-  const unsigned char version[] = {0x02, 0x00, 0x01, 0x00, 'O', 'B', 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x00, 0x01};
-  const unsigned char sop[] = {0x02, 0x00, 0x02, 0x00, 'U', 'I', 0x06, 0x00, '1', '.', '2', '.', '3', 0x00};
-  meta.append(reinterpret_cast<const char*>(group_length), sizeof group_length);
-  meta.append(reinterpret_cast<const char*>(version), sizeof version);
-  meta.append(reinterpret_cast<const char*>(sop), sizeof sop);
+  using ms::testing::element;
+  const std::string meta = ms::testing::preamble() + element(0x0002, 0x0000, "UL", std::string("\x1c\0\0\0", 4)) +
+                           element(0x0002, 0x0001, "OB", std::string("\0\x01", 2)) + element(0x0002, 0x0002, "UI", std::string("1.2.3\0", 6));
   for (std::size_t cut : {134u, 138u, 142u, 146u, 150u, 152u, 156u, 162u}) {
     const fs::path in = t / ("cut" + std::to_string(cut));
     fs::create_directories(in);
@@ -664,26 +658,15 @@ TEST(BadInput, FileMetaGroupCutInsideAnElement) {
 namespace {
 
 // Found by fuzzing: an element declaring ~4 GB in a 1.7 kB file made GDCM
-// allocate the whole value before failing (7 s, 4.2 GB per file). The data
-// set is now walked first; the file is refused like any corrupt file.
+// allocate the whole value before failing (7 s, 4.2 GB per file).
 TEST(BadInput, ElementLongerThanTheFile) {
   TempCase t;
-  std::string f(128, '\0');
-  f += "DICM";
-  const std::string ts = "1.2.840.10008.1.2.1";  // explicit VR little endian (19 chars + pad)
-  auto el16 = [&](std::uint16_t g, std::uint16_t e, const char* vr, const std::string& v) {
-    const unsigned char h[8] = {static_cast<unsigned char>(g & 0xff), static_cast<unsigned char>(g >> 8),
-                                static_cast<unsigned char>(e & 0xff), static_cast<unsigned char>(e >> 8),
-                                static_cast<unsigned char>(vr[0]), static_cast<unsigned char>(vr[1]),
-                                static_cast<unsigned char>(v.size() & 0xff), static_cast<unsigned char>(v.size() >> 8)};
-    f.append(reinterpret_cast<const char*>(h), 8);
-    f += v;
-  };
-  el16(0x0002, 0x0010, "UI", ts + std::string(1, '\0'));
-  el16(0x0008, 0x0060, "CS", "CT");
-  const unsigned char huge[12] = {0x09, 0x00, 0x10, 0x10, 'O', 'B', 0, 0, 0x00, 0x00, 0x00, 0xff};  // (0009,1010) OB, 4 GB
-  f.append(reinterpret_cast<const char*>(huge), 12);
-  f.append(1500, '\x55');
+  using ms::testing::element;
+  // (0009,1010) OB declaring ~4 GB in a 1.7 kB file. The refusal contract is
+  // checked here; that GDCM is no longer handed the file (it allocated the
+  // declared length) is checked by Ingest.SafeToParseRejectsWhatGdcmCannotTake.
+  const std::string f = ms::testing::preamble() + element(0x0002, 0x0010, "UI", std::string("1.2.840.10008.1.2.1\0", 20)) +
+                        element(0x0008, 0x0060, "CS", "CT") + element(0x0009, 0x1010, "OB", std::string(1500, '\x55'), 0xff000000u);
   const fs::path in = t / "long";
   fs::create_directories(in);
   std::ofstream(in / "x.dcm", std::ios::binary).write(f.data(), static_cast<std::streamsize>(f.size()));

@@ -328,3 +328,54 @@ TEST(Ingest, HeadsqNrrdFromSharedDataLoads) {
   for (float v : s.volume.hu) mn = std::min(mn, v);
   EXPECT_LT(mn, -900.0f);  // air after the offset
 }
+
+namespace {
+
+// The structure check that keeps malformed files away from GDCM (which
+// asserts, or allocates whatever a length declares): real files in every
+// transfer syntax pass; each defect found by fuzzing fails.
+TEST(Ingest, SafeToParseRejectsWhatGdcmCannotTake) {
+  using ms::testing::element;
+  const fs::path dir = fs::temp_directory_path() / ("mandisym_safe_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  auto write = [&](const std::string& name, const std::string& bytes) {
+    const fs::path p = dir / name;
+    std::ofstream(p, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    return p.string();
+  };
+  ms::testing::SliceSpec s;
+  s.rows = 6;
+  s.cols = 7;
+  for (const char* ts : {"raw", "implicit", "jpeg-lossless", "jpeg2000", "rle"}) {
+    s.transfer_syntax = ts;
+    const std::string p = (dir / (std::string(ts) + ".dcm")).string();
+    ms::testing::write_slice(p, s);
+    EXPECT_TRUE(ms::io::dicom::safe_to_parse(p)) << ts;
+  }
+  ms::testing::EnhancedSpec e;
+  e.base = s;
+  e.base.transfer_syntax = "raw";
+  e.ipps = {{0, 0, 0}, {0, 0, 1}};
+  e.frames.assign(2, std::vector<std::int32_t>(42, 1000));
+  ms::testing::write_enhanced((dir / "enhanced.dcm").string(), e);
+  EXPECT_TRUE(ms::io::dicom::safe_to_parse((dir / "enhanced.dcm").string())) << "nested sequences";
+
+  const std::string meta = ms::testing::preamble() + element(0x0002, 0x0010, "UI", std::string("1.2.840.10008.1.2.1\0", 20));
+  const std::string good = meta + element(0x0008, 0x0060, "CS", "CT") + element(0x0009, 0x1010, "OB", std::string(64, 'x'));
+  EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("good.dcm", good)));
+  // A declared length past the end of the file.
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(
+      write("long.dcm", meta + element(0x0008, 0x0060, "CS", "CT") + element(0x0009, 0x1010, "OB", std::string(64, 'x'), 0xff000000u))));
+  // The file meta group cut inside an element, at every byte.
+  for (std::size_t cut = 133; cut < meta.size(); ++cut)
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("cut.dcm", meta.substr(0, cut)))) << cut;
+  // A sequence delimiter where an element belongs.
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("delim.dcm", meta + element(0x0008, 0x0060, "CS", "CT") +
+                                                                     std::string("\xfe\xff\xdd\xe0\0\0\0\0", 8))));
+  // No preamble: a data set may start with group 0008, arbitrary bytes may not.
+  EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("bare.dcm", element(0x0008, 0x0060, "CS", "CT") + std::string(16, '\0'))));
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("junk.dcm", std::string("%PDF-1.4 not a scan at all"))));
+  fs::remove_all(dir);
+}
+
+}  // namespace

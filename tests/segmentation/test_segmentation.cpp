@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "phantom/phantom.h"
 #include "segmentation/segmentation.h"
+#include "tests/support/openkbp.h"
 
 using namespace ms;
 
@@ -40,16 +41,6 @@ LabelMap analytic_labels(const Geometry& g) {
   return m;
 }
 
-double dice(const Mask& a, const Mask& b) {
-  std::size_t inter = 0, na = 0, nb = 0;
-  for (std::size_t i = 0; i < a.data.size(); ++i) {
-    na += a.data[i];
-    nb += b.data[i];
-    inter += a.data[i] && b.data[i];
-  }
-  return 2.0 * inter / static_cast<double>(na + nb);
-}
-
 Mask sphere_on(const Geometry& g) {
   Mask m;
   m.geom = g;
@@ -76,7 +67,7 @@ TEST(ExternalMask, OtherGridIsResampledInLpsSpace) {
   // Coarser, shifted and rotated 20 degrees about S.
   const Geometry other = grid({36, 36, 30}, {1.3, 1.3, 1.4}, {-22, -25, -20}, 0.35);
   const auto r = segmentation::from_label_map(ct, analytic_labels(other), 1, "m.nii.gz");
-  EXPECT_GT(dice(r.mask, sphere_on(ct)), 0.93);
+  EXPECT_GT(ms::testing::dice(r.mask, sphere_on(ct)), 0.93);
   ASSERT_FALSE(r.warnings.empty());
   EXPECT_NE(r.warnings[0].find("resampled"), std::string::npos);
 }
@@ -123,7 +114,6 @@ TEST(ExternalMask, SeveralPartsAndTruncationAreReported) {
 
 #include "geometry/mesh_geometry.h"
 #include "surface/surface.h"
-#include "tests/support/openkbp.h"
 
 namespace {
 

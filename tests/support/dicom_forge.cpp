@@ -143,6 +143,28 @@ void write_file(const std::string& path, gdcm::File& file, const std::string& sy
 
 }  // namespace
 
+std::string preamble() { return std::string(128, '\0') + "DICM"; }
+
+std::string element(std::uint16_t group, std::uint16_t elem, const char* vr, const std::string& value,
+                    std::optional<std::uint32_t> declared_length) {
+  const std::uint32_t len = declared_length ? *declared_length : static_cast<std::uint32_t>(value.size());
+  std::string h;
+  auto put16 = [&](std::uint32_t v) { h += static_cast<char>(v & 0xff), h += static_cast<char>((v >> 8) & 0xff); };
+  put16(group);
+  put16(elem);
+  h += vr[0];
+  h += vr[1];
+  const std::string v(vr, 2);
+  if (v == "OB" || v == "OW" || v == "OF" || v == "SQ" || v == "UN" || v == "UT") {
+    put16(0);
+    put16(len & 0xffff);
+    put16(len >> 16);
+  } else {
+    put16(len);
+  }
+  return h + value;
+}
+
 std::string unique_uid() {
   static gdcm::UIDGenerator g;
   return g.Generate();

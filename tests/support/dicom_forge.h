@@ -57,4 +57,12 @@ std::vector<SliceSpec> write_series(const std::string& dir, SliceSpec base, int 
 
 std::string unique_uid();
 
+// Raw bytes for hand-made (also malformed) files, explicit VR little endian:
+// the 128-byte preamble + "DICM", and one element with the header its VR
+// calls for (long VRs: 2 reserved bytes + 32-bit length). declared_length
+// overrides the length written in the header (the value stays as given).
+std::string preamble();
+std::string element(std::uint16_t group, std::uint16_t elem, const char* vr, const std::string& value,
+                    std::optional<std::uint32_t> declared_length = std::nullopt);
+
 }  // namespace ms::testing
