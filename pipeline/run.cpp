@@ -48,6 +48,10 @@ const cli::CommandSpec& run_spec() {
        {"edge-length", "MM", "isotropic remeshing edge length (0 = no CGAL repair/remeshing)", "1"},
        {"close-handles", "MM", "closing radius before meshing, removes handles such as teeth in contact (0 = none)", "0"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
+       {"saf-smoothing", "MM", "heat-kernel sigma applied to the signed SAF residual before its magnitude (0 = per face, "
+                               "METHOD.md's literal definition)", "6"},
+       {"saf-anchors", "WHICH", "where the Dirichlet disks sit: reference (the symmetric reference configuration) or "
+                                "detected (the detected landmarks)", "reference"},
        {"no-figures", "", "do not write QC figures", ""},
        {"deidentify", "", "leave out of every output the DICOM strings that can identify a study: UIDs, dates, "
                           "descriptions, the input path", ""},
@@ -187,7 +191,16 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     regions = asymmetry::assign_regions(surf.mesh, S.landmarks.landmarks);
     S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions, &S.landmarks.landmarks);
     sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
-    S.saf = asymmetry::compute_saf(surf.mesh, S.landmarks.landmarks, S.reference.plane, sao);
+    sao.smoothing_mm = args.number("saf-smoothing", sao.smoothing_mm);
+    const std::string anchors = args.get("saf-anchors", "reference");
+    if (anchors != "reference" && anchors != "detected")
+      throw Error(ExitCode::Usage, "--saf-anchors must be reference or detected, not '" + anchors + "'");
+    LandmarkSet disks;  // only landmarks that were detected
+    for (const auto& [name, p] : S.landmarks.landmarks.points) {
+      const Vec3* q = S.reference.reference.find(name);
+      disks.set(name, anchors == "reference" && q ? *q : p);
+    }
+    S.saf = asymmetry::compute_saf(surf.mesh, disks, S.reference.plane, sao);
     if (!S.saf.skipped.empty())
       S.warnings.push_back("asymmetry: " + std::to_string(S.saf.skipped.size()) +
                            " SAF configuration(s) skipped for missing landmarks");
@@ -206,6 +219,8 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.parameters["surface_smoothing_sigma_mm"] = num(mo.smoothing_sigma_mm);
   S.parameters["surface_target_faces"] = std::to_string(mo.target_faces);
   S.parameters["saf_disk_radius_mm"] = num(sao.disk_radius_mm);
+  S.parameters["saf_smoothing_mm"] = num(sao.smoothing_mm);
+  S.parameters["saf_anchors"] = args.get("saf-anchors", "reference");
   S.parameters["landmark_method"] = S.landmarks.method;
 
   // ---- outputs, staged then moved into place ----

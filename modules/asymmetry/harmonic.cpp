@@ -2,6 +2,7 @@
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
+#include <Eigen/OrderingMethods>
 
 #include <algorithm>
 #include <cmath>
@@ -9,35 +10,71 @@
 #include <stdexcept>
 
 namespace ms::asymmetry {
+namespace {
+
+// Cotangent stiffness matrix (symmetric PSD): ½ Σ (cot α + cot β) per edge.
+Eigen::SparseMatrix<double> stiffness(const Mesh& m) {
+  const int n = static_cast<int>(m.vertices.size());
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(m.faces.size() * 12);
+  for (const auto& f : m.faces)
+    for (int k = 0; k < 3; ++k) {
+      const int i = f[k], j = f[(k + 1) % 3], o = f[(k + 2) % 3];
+      const Vec3 a = m.vertices[i] - m.vertices[o], b = m.vertices[j] - m.vertices[o];
+      const double cr = norm(cross(a, b));
+      const double cot = cr > 1e-12 ? dot(a, b) / cr : 0.0;
+      const double w = 0.5 * cot;
+      t.emplace_back(i, j, -w);
+      t.emplace_back(j, i, -w);
+      t.emplace_back(i, i, w);
+      t.emplace_back(j, j, w);
+    }
+  Eigen::SparseMatrix<double> L(n, n);
+  L.setFromTriplets(t.begin(), t.end());
+  return L;
+}
+
+}  // namespace
 
 struct HarmonicFieldSolver::Impl {
   const Mesh& mesh;
   double radius;
-  Eigen::SparseMatrix<double> L;  // cotangent stiffness matrix, PSD
-  struct Factor {
-    std::vector<int> free_index;  // vertex -> row in the reduced system, -1 if constrained
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> llt;
-  };
-  std::map<std::vector<int>, std::unique_ptr<Factor>> cache;
+  Eigen::SparseMatrix<double> L;   // cotangent stiffness matrix, PSD
+  std::vector<int> perm;           // vertex -> row of the fill-reducing (AMD) order, computed once
+  Eigen::SparseMatrix<double> Lp;  // L in that order (both triangles)
+  // One factor per Dirichlet set: the full system in AMD order with the
+  // constrained rows and columns replaced by the identity, so every set shares
+  // the ordering and only the numeric factorisation is repeated.
+  using Ldlt = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>>;
+  std::map<std::vector<int>, std::unique_ptr<Ldlt>> cache;
 
-  Impl(const Mesh& m, double r) : mesh(m), radius(r) {
-    const int n = static_cast<int>(m.vertices.size());
-    std::vector<Eigen::Triplet<double>> t;
-    t.reserve(m.faces.size() * 12);
-    for (const auto& f : m.faces)
-      for (int k = 0; k < 3; ++k) {
-        const int i = f[k], j = f[(k + 1) % 3], o = f[(k + 2) % 3];
-        const Vec3 a = m.vertices[i] - m.vertices[o], b = m.vertices[j] - m.vertices[o];
-        const double cr = norm(cross(a, b));
-        const double cot = cr > 1e-12 ? dot(a, b) / cr : 0.0;
-        const double w = 0.5 * cot;
-        t.emplace_back(i, j, -w);
-        t.emplace_back(j, i, -w);
-        t.emplace_back(i, i, w);
-        t.emplace_back(j, j, w);
-      }
-    L.resize(n, n);
-    L.setFromTriplets(t.begin(), t.end());
+  Impl(const Mesh& m, double r) : mesh(m), radius(r), L(stiffness(m)) {
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pinv;
+    Eigen::AMDOrdering<int>()(L, pinv);
+    const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> p = pinv.inverse();
+    perm.assign(p.indices().data(), p.indices().data() + p.size());
+    Lp = L.twistedBy(p);
+  }
+
+  std::unique_ptr<Ldlt> factorise(const std::vector<int>& constrained) const {
+    std::vector<char> fixed(L.rows(), 0);
+    for (int v : constrained) fixed[perm[v]] = 1;
+    Eigen::SparseMatrix<double> A = Lp;
+    for (int c = 0; c < A.outerSize(); ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(A, c); it; ++it)
+        if (fixed[it.row()] || fixed[it.col()]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+    auto f = std::make_unique<Ldlt>(A);
+    if (f->info() != Eigen::Success) throw std::runtime_error("harmonic field: factorisation failed");
+    return f;
+  }
+
+  static std::vector<int> key(const std::vector<int>& da, const std::vector<int>& db) {
+    std::vector<int> k = da;
+    k.insert(k.end(), db.begin(), db.end());
+    std::sort(k.begin(), k.end());
+    if (std::adjacent_find(k.begin(), k.end()) != k.end())
+      throw std::invalid_argument("harmonic field: the two Dirichlet disks overlap");
+    return k;
   }
 };
 
@@ -60,45 +97,102 @@ std::vector<int> HarmonicFieldSolver::disk(const Vec3& p) const {
   return out;
 }
 
+void HarmonicFieldSolver::prepare(const std::vector<std::pair<Vec3, Vec3>>& pairs) {
+  std::vector<std::vector<int>> todo;
+  for (const auto& [a, b] : pairs) {
+    std::vector<int> k;
+    try {
+      k = Impl::key(disk(a), disk(b));
+    } catch (const std::invalid_argument&) {
+      continue;  // solve() reports it for that pair
+    }
+    if (!impl_->cache.count(k) && std::find(todo.begin(), todo.end(), k) == todo.end()) todo.push_back(std::move(k));
+  }
+  std::vector<std::unique_ptr<Impl::Ldlt>> done(todo.size());
+#pragma omp parallel for schedule(dynamic)
+  for (int i = 0; i < static_cast<int>(todo.size()); ++i) {
+    try {
+      done[i] = impl_->factorise(todo[i]);
+    } catch (const std::exception&) {
+      // left out: solve() factorises again and reports the failure for that pair
+    }
+  }
+  for (std::size_t i = 0; i < todo.size(); ++i)
+    if (done[i]) impl_->cache[todo[i]] = std::move(done[i]);
+}
+
 std::vector<double> HarmonicFieldSolver::solve(const Vec3& a, const Vec3& b) {
   const std::vector<int> da = disk(a), db = disk(b);
-  std::vector<int> key = da;
-  key.insert(key.end(), db.begin(), db.end());
-  std::sort(key.begin(), key.end());
-  if (std::adjacent_find(key.begin(), key.end()) != key.end())
-    throw std::invalid_argument("harmonic field: the two Dirichlet disks overlap");
+  const auto k = Impl::key(da, db);
+  auto& slot = impl_->cache[k];
+  if (!slot) slot = impl_->factorise(k);
   const int n = static_cast<int>(impl_->mesh.vertices.size());
-  auto& slot = impl_->cache[key];
-  if (!slot) {
-    slot = std::make_unique<Impl::Factor>();
-    slot->free_index.assign(n, 0);
-    for (int v : key) slot->free_index[v] = -1;
-    int nf = 0;
-    for (int i = 0; i < n; ++i)
-      if (slot->free_index[i] >= 0) slot->free_index[i] = nf++;
-    std::vector<Eigen::Triplet<double>> t;
-    for (int c = 0; c < impl_->L.outerSize(); ++c)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(impl_->L, c); it; ++it) {
-        const int fi = slot->free_index[it.row()], fj = slot->free_index[it.col()];
-        if (fi >= 0 && fj >= 0) t.emplace_back(fi, fj, it.value());
-      }
-    Eigen::SparseMatrix<double> A(nf, nf);
-    A.setFromTriplets(t.begin(), t.end());
-    slot->llt.compute(A);
-    if (slot->llt.info() != Eigen::Success) throw std::runtime_error("harmonic field: factorisation failed");
+  const auto& perm = impl_->perm;
+  std::vector<char> fixed(n, 0);
+  for (int v : k) fixed[v] = 1;
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);  // in AMD order
+  for (int v : db) {
+    rhs[perm[v]] = 1.0;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(impl_->L, v); it; ++it)  // -L_fc u_c
+      if (!fixed[it.row()]) rhs[perm[it.row()]] -= it.value();
   }
-  std::vector<double> u(n, 0.0);
-  for (int v : db) u[v] = 1.0;
-  const auto& fi = slot->free_index;
-  const int nf = static_cast<int>(std::count_if(fi.begin(), fi.end(), [](int x) { return x >= 0; }));
-  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nf);
-  for (int v : db)  // columns of the u = 1 vertices: rhs = -L_fc u_c
-    for (Eigen::SparseMatrix<double>::InnerIterator it(impl_->L, v); it; ++it)
-      if (fi[it.row()] >= 0) rhs[fi[it.row()]] -= it.value();
-  const Eigen::VectorXd x = slot->llt.solve(rhs);
-  for (int i = 0; i < n; ++i)
-    if (fi[i] >= 0) u[i] = x[fi[i]];
+  const Eigen::VectorXd x = slot->solve(rhs);
+  std::vector<double> u(n);
+  for (int i = 0; i < n; ++i) u[i] = x[perm[i]];
   return u;
+}
+
+struct SurfaceSmoother::Impl {
+  explicit Impl(const Mesh& m) : mesh(m) {}
+  const Mesh& mesh;
+  std::vector<double> area;  // lumped: one third of the incident faces
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+};
+
+SurfaceSmoother::SurfaceSmoother(const Mesh& mesh, double sigma) : impl_(std::make_unique<Impl>(mesh)) {
+  const int n = static_cast<int>(mesh.vertices.size());
+  auto& A = impl_->area;
+  A.assign(n, 0.0);
+  for (const auto& f : mesh.faces) {
+    const double a = 0.5 * norm(cross(mesh.vertices[f[1]] - mesh.vertices[f[0]], mesh.vertices[f[2]] - mesh.vertices[f[0]]));
+    for (int k = 0; k < 3; ++k) A[f[k]] += a / 3.0;
+  }
+  Eigen::SparseMatrix<double> S = (0.5 * sigma * sigma) * stiffness(mesh);
+  for (int i = 0; i < n; ++i) S.coeffRef(i, i) += std::max(A[i], 1e-12);
+  impl_->solver.compute(S);
+  if (impl_->solver.info() != Eigen::Success) throw std::runtime_error("surface smoothing: factorisation failed");
+}
+SurfaceSmoother::~SurfaceSmoother() = default;
+const std::vector<double>& SurfaceSmoother::vertex_areas() const { return impl_->area; }
+
+std::vector<double> SurfaceSmoother::smooth(const std::vector<double>& r) const {
+  const int n = static_cast<int>(r.size());
+  Eigen::VectorXd b(n);
+  for (int i = 0; i < n; ++i) b[i] = impl_->area[i] * r[i];
+  const Eigen::VectorXd x = impl_->solver.solve(b);
+  return std::vector<double>(x.data(), x.data() + n);
+}
+
+std::vector<double> SurfaceSmoother::smooth_face_angles(const std::vector<double>& angle,
+                                                        const std::vector<double>& weight) const {
+  const auto& m = impl_->mesh;
+  const std::size_t n = m.vertices.size();
+  std::vector<double> sn(n, 0.0), cs(n, 0.0), w(n, 0.0);
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    if (!(weight[f] > 0) || !std::isfinite(angle[f])) continue;
+    for (int k = 0; k < 3; ++k) {
+      sn[m.faces[f][k]] += weight[f] * std::sin(angle[f]);
+      cs[m.faces[f][k]] += weight[f] * std::cos(angle[f]);
+      w[m.faces[f][k]] += weight[f];
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if (impl_->area[i] > 0) sn[i] /= 3.0 * impl_->area[i], cs[i] /= 3.0 * impl_->area[i], w[i] /= 3.0 * impl_->area[i];
+  const auto ss = smooth(sn), sc = smooth(cs), sw = smooth(w);
+  std::vector<double> out(n, std::nan(""));
+  for (std::size_t i = 0; i < n; ++i)
+    if (sw[i] > 1e-6) out[i] = std::atan2(ss[i], sc[i]);
+  return out;
 }
 
 std::vector<Vec3> face_gradients(const Mesh& m, const std::vector<double>& u) {

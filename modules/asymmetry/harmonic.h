@@ -4,6 +4,7 @@
 #pragma once
 
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "core/types.h"
@@ -23,8 +24,32 @@ class HarmonicFieldSolver {
   // u = 0 on the disk around a, u = 1 on the disk around b, L u = 0 elsewhere.
   // Throws std::invalid_argument if the two disks overlap.
   std::vector<double> solve(const Vec3& a, const Vec3& b);
+  // Factorise the constraint sets of these (a, b) pairs in parallel (OpenMP);
+  // solve() then only back-substitutes. Optional: solve() factorises on demand.
+  void prepare(const std::vector<std::pair<Vec3, Vec3>>& pairs);
   std::vector<int> disk(const Vec3& p) const;
   std::size_t factorisations() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Heat-kernel smoothing on the surface: x = (M + t L)^-1 M r with lumped
+// vertex areas M and the cotangent stiffness L, t = σ²/2 (σ in mm). Factorised
+// once per mesh and σ; each smooth() is one back-substitution.
+class SurfaceSmoother {
+ public:
+  SurfaceSmoother(const Mesh& mesh, double sigma_mm);
+  ~SurfaceSmoother();
+  SurfaceSmoother(const SurfaceSmoother&) = delete;
+  SurfaceSmoother& operator=(const SurfaceSmoother&) = delete;
+  std::vector<double> smooth(const std::vector<double>& per_vertex) const;
+  // Heat-kernel circular mean of a per-face angle with per-face weights (0 =
+  // masked): smoothed (cos, sin), so there is no branch cut at ±π. Per-vertex
+  // angle in (-π, π], NaN where no weighted face is in reach.
+  std::vector<double> smooth_face_angles(const std::vector<double>& angle, const std::vector<double>& weight) const;
+  const std::vector<double>& vertex_areas() const;
 
  private:
   struct Impl;

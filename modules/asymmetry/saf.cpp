@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <map>
+#include <memory>
 
 #include "asymmetry/harmonic.h"
 #include "geometry/mesh_geometry.h"
@@ -51,9 +53,14 @@ std::vector<double> signed_angle_field(const Mesh& mesh, const std::vector<Vec3>
   return th;
 }
 
-SafResult compute_saf(const Mesh& mesh, const LandmarkSet& lm, const Plane& plane, const SafOptions& opt) {
+SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane& plane, const SafOptions& opt) {
   SafResult r;
   const std::size_t nf = mesh.faces.size();
+  const geometry::ClosestPointIndex index(mesh);
+  // Disk centres: the anchors projected onto the surface (the symmetric
+  // reference configuration lies off the surface where the mandible is asymmetric).
+  LandmarkSet lm;
+  for (const auto& [name, p] : anchors.points) lm.set(name, index.closest(p).point);
   HarmonicFieldSolver solver(mesh, opt.disk_radius_mm);
   std::map<std::pair<std::string, std::string>, std::vector<Vec3>> grads;
   auto gradient = [&](const std::string& a, const std::string& b) -> const std::vector<Vec3>& {
@@ -65,18 +72,35 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& lm, const Plane& plan
     return signed_angle_field(mesh, gradient(c.a, c.b), gradient(c.c, c.d), opt.min_gradient_ratio);
   };
 
+  {
+    std::vector<std::pair<Vec3, Vec3>> pairs;
+    for (const auto& c : opt.configurations)
+      for (const auto& k : {c, mirrored(c)})
+        for (const auto& [x, y] : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)})
+          if (lm.has(x) && lm.has(y)) pairs.emplace_back(*lm.find(x), *lm.find(y));
+    solver.prepare(pairs);
+  }
   // Mirror correspondence σ(f): face containing the closest surface point to
   // the reflected face centroid.
-  const geometry::ClosestPointIndex index(mesh);
   std::vector<int> sigma(nf);
   for (std::size_t f = 0; f < nf; ++f) {
     const auto& t = mesh.faces[f];
     const Vec3 c = (1.0 / 3.0) * (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]);
     sigma[f] = index.closest(plane.reflect(c)).face;
   }
+  double smoothing = opt.smoothing_mm;
+  std::unique_ptr<SurfaceSmoother> smoother;
+  if (smoothing > 0) smoother = std::make_unique<SurfaceSmoother>(mesh, smoothing);
   const auto area = geometry::face_areas(mesh);
+  std::vector<geometry::ClosestHit> vertex_mirror;  // σ(v) for the smoothed comparison
+  if (smoother) {
+    vertex_mirror.resize(mesh.vertices.size());
+    for (std::size_t v = 0; v < mesh.vertices.size(); ++v) vertex_mirror[v] = index.closest(plane.reflect(mesh.vertices[v]));
+  }
   std::vector<double> face_sum(nf, 0.0);
   std::vector<int> face_cnt(nf, 0);
+  std::vector<double> vert_sum(mesh.vertices.size(), 0.0);
+  std::vector<int> vert_cnt(mesh.vertices.size(), 0);
   double score_sum = 0, free_sum = 0;
   int used = 0;
   for (const auto& c : opt.configurations) {
@@ -96,14 +120,46 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& lm, const Plane& plan
       continue;
     }
     double num = 0, den = 0;
-    for (std::size_t f = 0; f < nf; ++f) {
-      const std::size_t g = static_cast<std::size_t>(sigma[f]);
-      if (std::isnan(tc[f]) || std::isnan(tm[f]) || std::isnan(tc[g]) || std::isnan(tm[g])) continue;
-      const double a = 0.5 * (std::abs(wrap_angle(tc[f] + tm[g])) + std::abs(wrap_angle(tm[f] + tc[g])));
-      num += area[f] * a;
-      den += area[f];
-      face_sum[f] += a;
-      face_cnt[f] += 1;
+    if (smoother) {
+      // Smoothed fields per vertex, compared at the mirror point with
+      // barycentric interpolation (continuous, so no ties between faces).
+      auto smoothed = [&](const std::vector<double>& th) {
+        std::vector<double> w(nf, 0.0);
+        for (std::size_t f = 0; f < nf; ++f) w[f] = std::isnan(th[f]) ? 0.0 : area[f];
+        return smoother->smooth_face_angles(th, w);
+      };
+      const auto sc = smoothed(tc), sm = smoothed(tm);
+      auto at_mirror = [&](const std::vector<double>& s, std::size_t v) {
+        const auto& h = vertex_mirror[v];
+        const auto& t = mesh.faces[h.face];
+        double sn = 0, cs = 0;
+        for (int k = 0; k < 3; ++k) {
+          if (std::isnan(s[t[k]])) return std::nan("");
+          sn += h.bary[k] * std::sin(s[t[k]]);
+          cs += h.bary[k] * std::cos(s[t[k]]);
+        }
+        return std::atan2(sn, cs);
+      };
+      const auto& va = smoother->vertex_areas();
+      for (std::size_t v = 0; v < sc.size(); ++v) {
+        const double r1 = wrap_angle(sc[v] + at_mirror(sm, v)), r2 = wrap_angle(sm[v] + at_mirror(sc, v));
+        if (std::isnan(r1) || std::isnan(r2)) continue;
+        const double a = 0.5 * (std::abs(r1) + std::abs(r2));
+        num += va[v] * a;
+        den += va[v];
+        vert_sum[v] += a;
+        vert_cnt[v] += 1;
+      }
+    } else {
+      for (std::size_t f = 0; f < nf; ++f) {
+        const std::size_t g = static_cast<std::size_t>(sigma[f]);
+        if (std::isnan(tc[f]) || std::isnan(tm[f]) || std::isnan(tc[g]) || std::isnan(tm[g])) continue;
+        const double a = 0.5 * (std::abs(wrap_angle(tc[f] + tm[g])) + std::abs(wrap_angle(tm[f] + tc[g])));
+        num += area[f] * a;
+        den += area[f];
+        face_sum[f] += a;
+        face_cnt[f] += 1;
+      }
     }
     const double s = den > 0 ? num / den : 0.0;
     r.per_configuration[c.name] = s;
@@ -149,6 +205,8 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& lm, const Plane& plan
   }
   r.per_vertex.resize(vs.size());
   for (std::size_t i = 0; i < vs.size(); ++i) r.per_vertex[i] = vw[i] > 0 ? vs[i] / vw[i] : 0.0;
+  if (smoother)
+    for (std::size_t i = 0; i < vs.size(); ++i) r.per_vertex[i] = vert_cnt[i] > 0 ? vert_sum[i] / vert_cnt[i] : 0.0;
   return r;
 }
 

@@ -22,6 +22,9 @@ Configuration mirrored(const Configuration& c);  // label mirror σ
 struct SafOptions {
   double disk_radius_mm = 2.0;
   double min_gradient_ratio = 1e-3;  // faces with |∇u| below this × median are masked
+  // σ (mm) of the heat kernel applied to the signed residual θ_C + θ_σC∘σ before
+  // its magnitude is taken (docs/method.md); 0 = per face, METHOD.md's literal form.
+  double smoothing_mm = 6.0;
   std::vector<Configuration> configurations = default_configurations();
 };
 
