@@ -363,6 +363,22 @@ TEST(HarmonicField, ReversedPairGivesOneMinusUWithOneFactorisation) {
   EXPECT_EQ(solver.factorisations(), 2u);
 }
 
+TEST(SurfaceSmoother, CircularMeanKeepsAConstantAndHasNoBranchCut) {
+  const auto& fx = symmetric();
+  const std::size_t nf = fx.mesh.faces.size();
+  as::SurfaceSmoother sm(fx.mesh, 6.0);
+  std::vector<double> w(nf, 1.0), c(nf, 0.7), cut(nf);
+  const auto s = sm.smooth_face_angles(c, w);
+  for (double v : s) ASSERT_NEAR(v, 0.7, 1e-9);
+  // Angles just either side of ±π average to π, not to 0 (a linear mean would).
+  for (std::size_t f = 0; f < nf; ++f) cut[f] = (f % 2 ? 1 : -1) * (kPi - 0.05);
+  for (double v : sm.smooth_face_angles(cut, w)) ASSERT_GT(std::abs(v), kPi - 0.06);
+  // Masked faces (weight 0) do not pull the mean: half the faces masked with a
+  // wild value leaves the constant.
+  for (std::size_t f = 0; f < nf; f += 2) c[f] = -2.0, w[f] = 0.0;
+  for (double v : sm.smooth_face_angles(c, w)) ASSERT_NEAR(v, 0.7, 1e-9);
+}
+
 TEST(HarmonicField, OverlappingDisksThrow) {
   const auto& fx = symmetric();
   as::HarmonicFieldSolver solver(fx.mesh, 2.0);
