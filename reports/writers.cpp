@@ -405,7 +405,9 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
   for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fmt(v, 4) << "</td></tr>\n";
   h << "</table>\n<p class=\"muted\">Correspondence-free SAF (secondary): "
-    << (s.saf.correspondence_free >= 0 ? fmt(s.saf.correspondence_free, 4) : "n/a") << " rad.</p>\n";
+    << (s.saf.correspondence_free >= 0 ? fmt(s.saf.correspondence_free, 4) : "n/a")
+    << " rad. The SAF comparison is symmetrised, so its map marks <em>where</em> the two sides differ (a left/right "
+       "region pair), not which side is abnormal; the signed mirror distance shows which side bulges.</p>\n";
 
   h << "<h2>Surface and plane</h2>\n<table><tr><th>quantity</th><th>value</th></tr>\n"
     << "<tr><td>segmentation volume (mm&sup3;)</td><td>" << fmt(s.seg_volume_mm3, 0) << "</td></tr>\n"
