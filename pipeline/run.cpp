@@ -48,8 +48,8 @@ const cli::CommandSpec& run_spec() {
        {"edge-length", "MM", "isotropic remeshing edge length (0 = no CGAL repair/remeshing)", "1"},
        {"close-handles", "MM", "closing radius before meshing, removes handles such as teeth in contact (0 = none)", "0"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
-       {"saf-smoothing", "MM", "heat-kernel sigma applied to the signed SAF residual before its magnitude (0 = per face, "
-                               "METHOD.md's literal definition)", "6"},
+       {"saf-smoothing", "MM", "heat-kernel sigma smoothing each signed angle field before the mirror comparison "
+                               "(0 = per face, METHOD.md's literal definition)", "6"},
        {"saf-anchors", "WHICH", "where the Dirichlet disks sit: reference (the symmetric reference configuration) or "
                                 "detected (the detected landmarks)", "reference"},
        {"no-figures", "", "do not write QC figures", ""},
@@ -89,6 +89,14 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   const std::string input = args.positional.at(0);
   const std::string outdir = args.get("output");
   if (outdir.empty()) throw Error(ExitCode::Usage, "run: -o OUTDIR is required");
+  asymmetry::SafOptions sao;
+  sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
+  sao.smoothing_mm = args.number("saf-smoothing", sao.smoothing_mm);
+  if (!(sao.disk_radius_mm > 0) || !(sao.smoothing_mm >= 0))
+    throw Error(ExitCode::Usage, "--disk-radius must be > 0 and --saf-smoothing >= 0 mm");
+  const std::string anchor_choice = args.get("saf-anchors", "reference");
+  if (anchor_choice != "reference" && anchor_choice != "detected")
+    throw Error(ExitCode::Usage, "--saf-anchors must be reference or detected, not '" + anchor_choice + "'");
   const bool quiet = args.has("quiet");
   std::ostringstream log;
   auto say = [&](const std::string& line) {
@@ -132,7 +140,6 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   // Stages 2-6: an error names the input it happened on.
   segmentation::Options so;
   surface::Options mo;
-  asymmetry::SafOptions sao;
   segmentation::Result seg;
   surface::Result surf;
   asymmetry::Regions regions;
@@ -190,16 +197,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     // 6. asymmetry
     regions = asymmetry::assign_regions(surf.mesh, S.landmarks.landmarks);
     S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions, &S.landmarks.landmarks);
-    sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
-    sao.smoothing_mm = args.number("saf-smoothing", sao.smoothing_mm);
-    const std::string anchors = args.get("saf-anchors", "reference");
-    if (anchors != "reference" && anchors != "detected")
-      throw Error(ExitCode::Usage, "--saf-anchors must be reference or detected, not '" + anchors + "'");
-    LandmarkSet disks;  // only landmarks that were detected
-    for (const auto& [name, p] : S.landmarks.landmarks.points) {
-      const Vec3* q = S.reference.reference.find(name);
-      disks.set(name, anchors == "reference" && q ? *q : p);
-    }
+    const auto disks = asymmetry::saf_anchors(S.landmarks.landmarks, S.reference.reference, anchor_choice == "reference");
     S.saf = asymmetry::compute_saf(surf.mesh, disks, S.reference.plane, sao);
     if (!S.saf.skipped.empty())
       S.warnings.push_back("asymmetry: " + std::to_string(S.saf.skipped.size()) +
@@ -220,7 +218,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.parameters["surface_target_faces"] = std::to_string(mo.target_faces);
   S.parameters["saf_disk_radius_mm"] = num(sao.disk_radius_mm);
   S.parameters["saf_smoothing_mm"] = num(sao.smoothing_mm);
-  S.parameters["saf_anchors"] = args.get("saf-anchors", "reference");
+  S.parameters["saf_anchors"] = anchor_choice;
   S.parameters["landmark_method"] = S.landmarks.method;
 
   // ---- outputs, staged then moved into place ----

@@ -1,5 +1,7 @@
 #include "asymmetry/harmonic.h"
 
+#include "asymmetry/measures.h"
+
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <Eigen/OrderingMethods>
@@ -150,45 +152,44 @@ struct SurfaceSmoother::Impl {
 };
 
 SurfaceSmoother::SurfaceSmoother(const Mesh& mesh, double sigma) : impl_(std::make_unique<Impl>(mesh)) {
-  const int n = static_cast<int>(mesh.vertices.size());
-  auto& A = impl_->area;
-  A.assign(n, 0.0);
-  for (const auto& f : mesh.faces) {
-    const double a = 0.5 * norm(cross(mesh.vertices[f[1]] - mesh.vertices[f[0]], mesh.vertices[f[2]] - mesh.vertices[f[0]]));
-    for (int k = 0; k < 3; ++k) A[f[k]] += a / 3.0;
-  }
+  impl_->area = asymmetry::vertex_areas(mesh);
   Eigen::SparseMatrix<double> S = (0.5 * sigma * sigma) * stiffness(mesh);
-  for (int i = 0; i < n; ++i) S.coeffRef(i, i) += std::max(A[i], 1e-12);
+  for (int i = 0; i < S.rows(); ++i) S.coeffRef(i, i) += std::max(impl_->area[i], 1e-12);
   impl_->solver.compute(S);
   if (impl_->solver.info() != Eigen::Success) throw std::runtime_error("surface smoothing: factorisation failed");
 }
 SurfaceSmoother::~SurfaceSmoother() = default;
 const std::vector<double>& SurfaceSmoother::vertex_areas() const { return impl_->area; }
 
+std::vector<double> SurfaceSmoother::solve_load(const std::vector<double>& b) const {
+  const Eigen::VectorXd x = impl_->solver.solve(Eigen::Map<const Eigen::VectorXd>(b.data(), static_cast<Eigen::Index>(b.size())));
+  return std::vector<double>(x.data(), x.data() + x.size());
+}
+
 std::vector<double> SurfaceSmoother::smooth(const std::vector<double>& r) const {
-  const int n = static_cast<int>(r.size());
-  Eigen::VectorXd b(n);
-  for (int i = 0; i < n; ++i) b[i] = impl_->area[i] * r[i];
-  const Eigen::VectorXd x = impl_->solver.solve(b);
-  return std::vector<double>(x.data(), x.data() + n);
+  std::vector<double> b(r.size());
+  for (std::size_t i = 0; i < r.size(); ++i) b[i] = impl_->area[i] * r[i];
+  return solve_load(b);
 }
 
 std::vector<double> SurfaceSmoother::smooth_face_angles(const std::vector<double>& angle,
                                                         const std::vector<double>& weight) const {
+  // Loads M·r of the per-face (sin, cos, 1)·weight spread a third to each
+  // corner; the kernel's normalisation cancels in atan2, the weight's smoothed
+  // load only tells where no face is in reach.
   const auto& m = impl_->mesh;
   const std::size_t n = m.vertices.size();
   std::vector<double> sn(n, 0.0), cs(n, 0.0), w(n, 0.0);
   for (std::size_t f = 0; f < m.faces.size(); ++f) {
     if (!(weight[f] > 0) || !std::isfinite(angle[f])) continue;
+    const double ws = weight[f] * std::sin(angle[f]) / 3.0, wc = weight[f] * std::cos(angle[f]) / 3.0;
     for (int k = 0; k < 3; ++k) {
-      sn[m.faces[f][k]] += weight[f] * std::sin(angle[f]);
-      cs[m.faces[f][k]] += weight[f] * std::cos(angle[f]);
-      w[m.faces[f][k]] += weight[f];
+      sn[m.faces[f][k]] += ws;
+      cs[m.faces[f][k]] += wc;
+      w[m.faces[f][k]] += weight[f] / 3.0;
     }
   }
-  for (std::size_t i = 0; i < n; ++i)
-    if (impl_->area[i] > 0) sn[i] /= 3.0 * impl_->area[i], cs[i] /= 3.0 * impl_->area[i], w[i] /= 3.0 * impl_->area[i];
-  const auto ss = smooth(sn), sc = smooth(cs), sw = smooth(w);
+  const auto ss = solve_load(sn), sc = solve_load(cs), sw = solve_load(w);
   std::vector<double> out(n, std::nan(""));
   for (std::size_t i = 0; i < n; ++i)
     if (sw[i] > 1e-6) out[i] = std::atan2(ss[i], sc[i]);

@@ -45,13 +45,14 @@ class SurfaceSmoother {
   SurfaceSmoother(const SurfaceSmoother&) = delete;
   SurfaceSmoother& operator=(const SurfaceSmoother&) = delete;
   std::vector<double> smooth(const std::vector<double>& per_vertex) const;
-  // Heat-kernel circular mean of a per-face angle with per-face weights (0 =
-  // masked): smoothed (cos, sin), so there is no branch cut at ±π. Per-vertex
-  // angle in (-π, π], NaN where no weighted face is in reach.
+  // Heat-kernel circular mean of a per-face angle, weighted per face (the
+  // face's area; 0 = masked): smoothed (cos, sin), so there is no branch cut at
+  // ±π. Per-vertex angle in (-π, π], NaN where no weighted face is in reach.
   std::vector<double> smooth_face_angles(const std::vector<double>& angle, const std::vector<double>& weight) const;
   const std::vector<double>& vertex_areas() const;
 
  private:
+  std::vector<double> solve_load(const std::vector<double>& load) const;  // (M + tL)^-1 load
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

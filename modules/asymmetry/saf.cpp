@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <map>
 #include <memory>
 
@@ -53,6 +52,15 @@ std::vector<double> signed_angle_field(const Mesh& mesh, const std::vector<Vec3>
   return th;
 }
 
+LandmarkSet saf_anchors(const LandmarkSet& detected, const LandmarkSet& reference, bool use_reference) {
+  LandmarkSet out;
+  for (const auto& [name, p] : detected.points) {
+    const Vec3* q = use_reference ? reference.find(name) : nullptr;
+    out.set(name, q ? *q : p);
+  }
+  return out;
+}
+
 SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane& plane, const SafOptions& opt) {
   SafResult r;
   const std::size_t nf = mesh.faces.size();
@@ -72,42 +80,50 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
     return signed_angle_field(mesh, gradient(c.a, c.b), gradient(c.c, c.d), opt.min_gradient_ratio);
   };
 
+  // A configuration is computable when it and its mirror have all their landmarks.
+  auto complete = [&](const Configuration& c) {
+    const Configuration m = mirrored(c);
+    for (const auto* n : {&c.a, &c.b, &c.c, &c.d, &m.a, &m.b, &m.c, &m.d})
+      if (!lm.has(*n)) return false;
+    return true;
+  };
   {
     std::vector<std::pair<Vec3, Vec3>> pairs;
     for (const auto& c : opt.configurations)
-      for (const auto& k : {c, mirrored(c)})
-        for (const auto& [x, y] : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)})
-          if (lm.has(x) && lm.has(y)) pairs.emplace_back(*lm.find(x), *lm.find(y));
+      if (complete(c))
+        for (const auto& k : {c, mirrored(c)})
+          for (const auto& [x, y] : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)})
+            pairs.emplace_back(*lm.find(x), *lm.find(y));
     solver.prepare(pairs);
   }
-  // Mirror correspondence σ(f): face containing the closest surface point to
-  // the reflected face centroid.
-  std::vector<int> sigma(nf);
-  for (std::size_t f = 0; f < nf; ++f) {
-    const auto& t = mesh.faces[f];
-    const Vec3 c = (1.0 / 3.0) * (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]);
-    sigma[f] = index.closest(plane.reflect(c)).face;
-  }
-  double smoothing = opt.smoothing_mm;
-  std::unique_ptr<SurfaceSmoother> smoother;
-  if (smoothing > 0) smoother = std::make_unique<SurfaceSmoother>(mesh, smoothing);
+  const std::size_t nv = mesh.vertices.size();
   const auto area = geometry::face_areas(mesh);
-  std::vector<geometry::ClosestHit> vertex_mirror;  // σ(v) for the smoothed comparison
+  std::unique_ptr<SurfaceSmoother> smoother;
+  if (opt.smoothing_mm > 0) smoother = std::make_unique<SurfaceSmoother>(mesh, opt.smoothing_mm);
+  // Mirror correspondence. Smoothed: σ(v) = closest surface point to the
+  // reflected vertex (face + barycentric coordinates). Per face: σ(f) = face
+  // containing the closest surface point to the reflected centroid.
+  std::vector<geometry::ClosestHit> vertex_mirror;
+  std::vector<int> sigma;
   if (smoother) {
-    vertex_mirror.resize(mesh.vertices.size());
-    for (std::size_t v = 0; v < mesh.vertices.size(); ++v) vertex_mirror[v] = index.closest(plane.reflect(mesh.vertices[v]));
+    vertex_mirror.resize(nv);
+    for (std::size_t v = 0; v < nv; ++v) vertex_mirror[v] = index.closest(plane.reflect(mesh.vertices[v]));
+  } else {
+    sigma.resize(nf);
+    for (std::size_t f = 0; f < nf; ++f) {
+      const auto& t = mesh.faces[f];
+      const Vec3 c = (1.0 / 3.0) * (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]);
+      sigma[f] = index.closest(plane.reflect(c)).face;
+    }
   }
-  std::vector<double> face_sum(nf, 0.0);
-  std::vector<int> face_cnt(nf, 0);
-  std::vector<double> vert_sum(mesh.vertices.size(), 0.0);
-  std::vector<int> vert_cnt(mesh.vertices.size(), 0);
+  // Sums of a_k for the SAF map: per vertex (smoothed) or per face.
+  std::vector<double> map_sum(smoother ? nv : nf, 0.0);
+  std::vector<int> map_cnt(map_sum.size(), 0);
   double score_sum = 0, free_sum = 0;
   int used = 0;
   for (const auto& c : opt.configurations) {
     const Configuration m = mirrored(c);
-    bool ok = true;
-    for (const auto* n : {&c.a, &c.b, &c.c, &c.d, &m.a, &m.b, &m.c, &m.d}) ok = ok && lm.has(*n);
-    if (!ok) {
+    if (!complete(c)) {
       r.skipped.push_back(c.name);
       continue;
     }
@@ -147,8 +163,8 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
         const double a = 0.5 * (std::abs(r1) + std::abs(r2));
         num += va[v] * a;
         den += va[v];
-        vert_sum[v] += a;
-        vert_cnt[v] += 1;
+        map_sum[v] += a;
+        map_cnt[v] += 1;
       }
     } else {
       for (std::size_t f = 0; f < nf; ++f) {
@@ -157,8 +173,8 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
         const double a = 0.5 * (std::abs(wrap_angle(tc[f] + tm[g])) + std::abs(wrap_angle(tm[f] + tc[g])));
         num += area[f] * a;
         den += area[f];
-        face_sum[f] += a;
-        face_cnt[f] += 1;
+        map_sum[f] += a;
+        map_cnt[f] += 1;
       }
     }
     const double s = den > 0 ? num / den : 0.0;
@@ -193,20 +209,25 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
   if (used == 0) return r;
   r.score = score_sum / used;
   r.correspondence_free = free_sum / used;
-  // SAF map: per-vertex area-weighted mean of the per-face values.
-  std::vector<double> vs(mesh.vertices.size(), 0.0), vw(mesh.vertices.size(), 0.0);
+  // SAF map: mean over configurations per vertex; per face, then the
+  // area-weighted mean of the incident faces.
+  r.per_vertex.assign(nv, 0.0);
+  if (smoother) {
+    for (std::size_t v = 0; v < nv; ++v)
+      if (map_cnt[v] > 0) r.per_vertex[v] = map_sum[v] / map_cnt[v];
+    return r;
+  }
+  std::vector<double> vw(nv, 0.0);
   for (std::size_t f = 0; f < nf; ++f) {
-    if (face_cnt[f] == 0) continue;
-    const double a = face_sum[f] / face_cnt[f];
+    if (map_cnt[f] == 0) continue;
+    const double a = map_sum[f] / map_cnt[f];
     for (int k = 0; k < 3; ++k) {
-      vs[mesh.faces[f][k]] += area[f] * a;
+      r.per_vertex[mesh.faces[f][k]] += area[f] * a;
       vw[mesh.faces[f][k]] += area[f];
     }
   }
-  r.per_vertex.resize(vs.size());
-  for (std::size_t i = 0; i < vs.size(); ++i) r.per_vertex[i] = vw[i] > 0 ? vs[i] / vw[i] : 0.0;
-  if (smoother)
-    for (std::size_t i = 0; i < vs.size(); ++i) r.per_vertex[i] = vert_cnt[i] > 0 ? vert_sum[i] / vert_cnt[i] : 0.0;
+  for (std::size_t v = 0; v < nv; ++v)
+    if (vw[v] > 0) r.per_vertex[v] /= vw[v];
   return r;
 }
 

@@ -22,8 +22,8 @@ Configuration mirrored(const Configuration& c);  // label mirror σ
 struct SafOptions {
   double disk_radius_mm = 2.0;
   double min_gradient_ratio = 1e-3;  // faces with |∇u| below this × median are masked
-  // σ (mm) of the heat kernel applied to the signed residual θ_C + θ_σC∘σ before
-  // its magnitude is taken (docs/method.md); 0 = per face, METHOD.md's literal form.
+  // σ (mm) of the heat kernel that smooths each θ_C (circular mean) before the
+  // per-vertex mirror comparison (docs/method.md); 0 = per face, METHOD.md's literal form.
   double smoothing_mm = 6.0;
   std::vector<Configuration> configurations = default_configurations();
 };
@@ -41,7 +41,13 @@ struct SafResult {
 std::vector<double> signed_angle_field(const Mesh& mesh, const std::vector<Vec3>& g1, const std::vector<Vec3>& g2,
                                        double min_gradient_ratio = 1e-3);
 
-// Needs a closed outward mesh, landmarks and the fitted symmetry plane.
+// The Dirichlet disk centres the pipeline uses: for each detected landmark, its
+// point in the symmetric reference configuration when use_reference (and the
+// reference has it), else the detected point. Landmarks not detected stay out.
+LandmarkSet saf_anchors(const LandmarkSet& detected, const LandmarkSet& reference, bool use_reference = true);
+
+// Needs a closed outward mesh, landmarks (disk centres, projected onto the
+// surface here) and the fitted symmetry plane.
 SafResult compute_saf(const Mesh& mesh, const LandmarkSet& landmarks, const Plane& plane, const SafOptions& options = {});
 
 // Wrap an angle to (-π, π].

@@ -625,6 +625,14 @@ TEST(BadInput, InvalidOrientationCode) {
   expect_refused(run_on(in, t.out(), {"--orientation", "XYZ"}), 2, t.out(), {in.string(), "XYZ"});
 }
 
+TEST(BadInput, SafOptionsOutOfRangeAreRefusedBeforeAnyWork) {
+  TempCase t;
+  const fs::path in = t / "ok.nii";
+  write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
+  expect_refused(run_on(in, t.out(), {"--saf-anchors", "both"}), 2, t.out(), {"'both'"});
+  expect_refused(run_on(in, t.out(), {"--saf-smoothing", "-1"}), 2, t.out(), {"--saf-smoothing"});
+}
+
 TEST(BadInput, OrientationCodeOfWrongLength) {
   TempCase t;
   const fs::path in = t / "ok.nii";

@@ -638,6 +638,20 @@ TEST(Saf, MissingLandmarkSkipsOnlyConfigurationsThatNeedIt) {
   EXPECT_EQ(r0.skipped.size(), as::default_configurations().size());
 }
 
+TEST(Saf, AnchorsAreTheReferencePointsOfTheDetectedLandmarks) {
+  ms::LandmarkSet detected, reference;
+  detected.set("Co_L", {1, 2, 3});
+  detected.set("Me", {0, -5, -9});
+  reference.set("Co_L", {1.5, 2, 3});
+  reference.set("Co_R", {-1.5, 2, 3});  // reflected partner, but Co_R was not detected
+  const auto a = as::saf_anchors(detected, reference);
+  ASSERT_EQ(a.points.size(), 2u);
+  EXPECT_EQ(*a.find("Co_L"), (Vec3{1.5, 2, 3}));
+  EXPECT_EQ(*a.find("Me"), (Vec3{0, -5, -9}));  // no reference point: the detected one
+  EXPECT_FALSE(a.has("Co_R"));
+  EXPECT_EQ(*as::saf_anchors(detected, reference, false).find("Co_L"), (Vec3{1, 2, 3}));
+}
+
 TEST(Saf, DefaultConfigurationsAreLeftAndMirrorToRight) {
   const auto& cs = as::default_configurations();
   EXPECT_GE(cs.size(), 4u);

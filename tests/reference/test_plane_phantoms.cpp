@@ -35,7 +35,8 @@ struct Outcome {
   double angle_deg = 0, offset_mm = 0;
 };
 
-Outcome run(const Case& c) {
+// 1 mm phantom of the case, noise-free (the ground-truth mask is meshed).
+ms::phantom::Phantom phantom(const Case& c) {
   ms::phantom::PhantomParams p;
   p.spacing = {1, 1, 1};
   p.fov_mm = {150, 140, 130};
@@ -45,8 +46,12 @@ Outcome run(const Case& c) {
   p.roll_deg = c.roll;
   p.side[0].ramus_height_mm = c.ramus_L;
   p.mirror = c.mirror;
+  return ms::phantom::generate(p);
+}
+
+Outcome run(const Case& c) {
   Outcome o;
-  o.ph = ms::phantom::generate(p);
+  o.ph = phantom(c);
   const auto surf = ms::surface::mesh_from_mask(o.ph.mandible);
   const auto lm = ms::landmarks::detect(surf.mesh);
   const auto t0 = std::chrono::steady_clock::now();
@@ -118,20 +123,11 @@ INSTANTIATE_TEST_SUITE_P(Series, GradedRamus,
 // detected landmarks -> reference configuration -> SAF with disks at it.
 namespace {
 double saf_score(const Case& c) {
-  ms::phantom::PhantomParams p;
-  p.spacing = {1, 1, 1};
-  p.fov_mm = {150, 140, 130};
-  p.noise_hu = 0;
-  p.yaw_deg = c.yaw;
-  p.pitch_deg = c.pitch;
-  p.roll_deg = c.roll;
-  p.side[0].ramus_height_mm = c.ramus_L;
-  p.mirror = c.mirror;
-  const auto ph = ms::phantom::generate(p);
-  const auto surf = ms::surface::mesh_from_mask(ph.mandible);
+  const auto surf = ms::surface::mesh_from_mask(phantom(c).mandible);
   const auto lm = ms::landmarks::detect(surf.mesh);
   const auto ref = ms::reference::fit(lm.landmarks, &surf.mesh);
-  const auto r = ms::asymmetry::compute_saf(surf.mesh, ref.reference, ref.plane);
+  const auto r =
+      ms::asymmetry::compute_saf(surf.mesh, ms::asymmetry::saf_anchors(lm.landmarks, ref.reference), ref.plane);
   std::printf("%s: SAF %.4f rad\n", c.name, r.score);
   return r.score;
 }
