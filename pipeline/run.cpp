@@ -198,7 +198,11 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     regions = asymmetry::assign_regions(surf.mesh, S.landmarks.landmarks);
     S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions, &S.landmarks.landmarks);
     const auto disks = asymmetry::saf_anchors(S.landmarks.landmarks, S.reference.reference, anchor_choice == "reference");
+    sao.keep_fields = true;  // for the SRD descriptors, dropped right after
     S.saf = asymmetry::compute_saf(surf.mesh, disks, S.reference.plane, sao);
+    S.srd = asymmetry::compute_srds(surf.mesh, S.saf);
+    S.saf.fields.clear();
+    S.saf.fields.shrink_to_fit();
     if (!S.saf.skipped.empty())
       S.warnings.push_back("asymmetry: " + std::to_string(S.saf.skipped.size()) +
                            " SAF configuration(s) skipped for missing landmarks");
@@ -291,6 +295,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       say(b);
     }
     reports::write_text_atomic((stage_dir / "log.txt").string(), "mandisym " + S.tool_version + "\n" + logged_command + "\n" + log.str());
+    reports::write_text_atomic((stage_dir / "srd.json").string(), reports::srd_json(S.srd).dump(1) + "\n");
     reports::write_text_atomic((stage_dir / "results.json").string(), reports::results_json(S).dump(2) + "\n");
     // Move into place: everything else first, results.json last (its presence
     // marks a complete run).

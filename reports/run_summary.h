@@ -8,6 +8,7 @@
 
 #include "asymmetry/measures.h"
 #include "asymmetry/saf.h"
+#include "asymmetry/srd.h"
 #include "core/types.h"
 #include "landmarks/landmarks.h"
 #include "reference/reference.h"
@@ -32,6 +33,7 @@ struct RunSummary {
   reference::Result reference;
   asymmetry::SafResult saf;
   std::map<std::string, double> saf_regions;
+  asymmetry::SrdResult srd;
   asymmetry::MirrorResult mirror;
   std::map<std::string, asymmetry::Bilateral> bilateral;
   std::vector<std::pair<std::string, double>> timings_s;  // in stage order

@@ -193,6 +193,14 @@ json::Value results_json(const RunSummary& s) {
   saf["correspondence_free"] = num_or_null(s.saf.correspondence_free, s.saf.correspondence_free >= 0);
   saf["skipped_configurations"] = Value::array();
   for (const auto& n : s.saf.skipped) saf["skipped_configurations"].push_back(n);
+  auto& srd = saf["srd"];
+  srd = Value::object();
+  for (const auto& t : s.srd.twins) {
+    auto& e = srd[t.landmark];
+    e["twin"] = t.twin;
+    e["mirror_mismatch_rad"] = num_or_null(t.mirror_mismatch, t.mirror_mismatch >= 0);
+    e["handedness_rad"] = num_or_null(t.handedness, t.handedness >= 0);
+  }
 
   auto& mir = root["scores"]["mirror"];
   mir = stats_json(s.mirror.overall, true);
@@ -221,6 +229,31 @@ json::Value results_json(const RunSummary& s) {
   auto& p = root["parameters"];
   p = Value::object();
   for (const auto& [k, v] : s.parameters) p[k] = v;
+  return root;
+}
+
+json::Value srd_json(const asymmetry::SrdResult& srd) {
+  using json::Value;
+  Value root = Value::object();
+  root["schema_version"] = "1.0";
+  root["rings"] = srd.options.rings;
+  root["ring_width_mm"] = srd.options.ring_width_mm;
+  root["bins"] = srd.options.bins;
+  root["layout"] = "each block: rings x bins area fractions, ring-major; bin b covers theta in [-pi + b*2pi/bins, -pi + (b+1)*2pi/bins)";
+  auto& d = root["landmarks"];
+  d = Value::object();
+  for (const auto& [name, desc] : srd.descriptors) {
+    auto& blocks = d[name];
+    blocks = Value::array();
+    for (const auto& b : desc.blocks) {
+      Value e = Value::object();
+      e["configuration"] = b.configuration;
+      e["mirrored"] = b.mirrored;
+      e["histogram"] = Value::array();
+      for (double h : b.histogram) e["histogram"].push_back(std::round(h * 1e6) / 1e6);
+      blocks.push_back(e);
+    }
+  }
   return root;
 }
 

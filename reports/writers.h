@@ -12,6 +12,8 @@ namespace ms::reports {
 inline constexpr const char* kSchemaVersion = "1.0";
 
 json::Value results_json(const RunSummary& s);
+// srd.json: the SRD descriptors at the landmarks (METHOD.md §6; docs/method.md).
+json::Value srd_json(const asymmetry::SrdResult& srd);
 std::string landmarks_markup(const LandmarkSet& landmarks);   // Slicer Fiducial, LPS
 std::string plane_markup(const Plane& plane, double size_mm);  // Slicer Plane, LPS
 // figures: segmentation QC PNGs; views: 3D view PNGs (files named

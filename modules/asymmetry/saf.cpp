@@ -69,6 +69,7 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
   // reference configuration lies off the surface where the mandible is asymmetric).
   LandmarkSet lm;
   for (const auto& [name, p] : anchors.points) lm.set(name, index.closest(p).point);
+  r.disk_centres = lm;
   HarmonicFieldSolver solver(mesh, opt.disk_radius_mm);
   std::map<std::pair<std::string, std::string>, std::vector<Vec3>> grads;
   auto gradient = [&](const std::string& a, const std::string& b) -> const std::vector<Vec3>& {
@@ -135,6 +136,10 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
       r.skipped.push_back(c.name);
       continue;
     }
+    if (opt.keep_fields && !smoother) {  // the fields the comparison uses: raw per face
+      r.fields.push_back({c.name, false, c, tc});
+      r.fields.push_back({c.name, true, m, tm});
+    }
     double num = 0, den = 0;
     if (smoother) {
       // Smoothed fields per vertex, compared at the mirror point with
@@ -145,6 +150,10 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
         return smoother->smooth_face_angles(th, w);
       };
       const auto sc = smoothed(tc), sm = smoothed(tm);
+      if (opt.keep_fields) {  // the fields the comparison uses: smoothed per vertex
+        r.fields.push_back({c.name, false, c, sc});
+        r.fields.push_back({c.name, true, m, sm});
+      }
       auto at_mirror = [&](const std::vector<double>& s, std::size_t v) {
         const auto& h = vertex_mirror[v];
         const auto& t = mesh.faces[h.face];

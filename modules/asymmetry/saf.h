@@ -26,6 +26,18 @@ struct SafOptions {
   // per-vertex mirror comparison (docs/method.md); 0 = per face, METHOD.md's literal form.
   double smoothing_mm = 6.0;
   std::vector<Configuration> configurations = default_configurations();
+  // Keep every θ_C the comparison used in SafResult::fields (per vertex when
+  // smoothed, per face otherwise), for the SRD descriptors (srd.h).
+  bool keep_fields = false;
+};
+
+// One signed angle field: configuration `name` of the set, as given (mirrored =
+// false) or its label mirror σ(C) (mirrored = true); labels resolved in `config`.
+struct AngleField {
+  std::string name;
+  bool mirrored = false;
+  Configuration config;
+  std::vector<double> theta;  // per vertex (smoothed) or per face; NaN where masked
 };
 
 struct SafResult {
@@ -35,6 +47,8 @@ struct SafResult {
   std::vector<double> per_vertex;          // SAF map (§4.2), radians
   std::vector<std::string> skipped;        // configurations with missing landmarks
   std::size_t factorisations = 0;
+  LandmarkSet disk_centres;           // the anchors projected onto the surface
+  std::vector<AngleField> fields;     // only with SafOptions::keep_fields
 };
 
 // θ_C per face, in (-π, π]; NaN where masked.

@@ -65,7 +65,7 @@ TEST(EndToEnd, WritesEveryOutputOfTheContract) {
   const fs::path out = temp_dir("files");
   ASSERT_EQ(run("run " + (kSamples / "symmetric" / "dicom").string() + " -o " + out.string() + " -q"), 0);
   for (const char* f : {"report.html", "results.json", "mandible_mask.nii.gz", "mandible.vtp", "mandible.stl",
-                        "landmarks.mrk.json", "symmetry_plane.mrk.json", "log.txt", "results.csv"})
+                        "landmarks.mrk.json", "symmetry_plane.mrk.json", "log.txt", "results.csv", "srd.json"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
   EXPECT_TRUE(fs::is_directory(out / "qc"));
   // No staging leftovers.
@@ -76,6 +76,19 @@ TEST(EndToEnd, WritesEveryOutputOfTheContract) {
   EXPECT_EQ(lm.at("markups")[0].at("controlPoints").size(), 8u);
   const Value pl = load(out / "symmetry_plane.mrk.json");
   EXPECT_EQ(pl.at("markups")[0].at("type").as_string(), "Plane");
+  // SRD descriptors at every landmark; on the symmetric sample each twin
+  // matches its bin-reversed partner far better than as it is (chirality).
+  const Value srd = load(out / "srd.json");
+  const std::size_t bins = static_cast<std::size_t>(srd.at("bins").as_number());
+  const std::size_t rings = static_cast<std::size_t>(srd.at("rings").as_number());
+  EXPECT_EQ(srd.at("landmarks").size(), 8u);
+  EXPECT_EQ(srd.at("landmarks").at("Co_L")[0].at("histogram").size(), bins * rings);
+  const Value twins = load(out / "results.json").at("scores").at("saf").at("srd");
+  for (const char* n : {"Co_L", "Cr_L", "Go_L", "Me", "Pog"}) {
+    const Value& t = twins.at(n);
+    EXPECT_LT(t.at("mirror_mismatch_rad").as_number(), 0.5 * t.at("handedness_rad").as_number()) << n;
+  }
+  EXPECT_EQ(twins.at("Co_L").at("twin").as_string(), "Co_R");
   std::ifstream html(out / "report.html");
   std::stringstream s;
   s << html.rdbuf();

@@ -22,6 +22,7 @@
 
 #include "asymmetry/harmonic.h"
 #include "asymmetry/saf.h"
+#include "asymmetry/srd.h"
 #include "core/types.h"
 #include "geometry/mesh_geometry.h"
 #include "surface/surface.h"
@@ -705,6 +706,115 @@ TEST(Saf, ScoreGrowsWithTheLengthOfOneArm) {
     if (k > 1.0) EXPECT_GT(r.score, previous + 0.02);
     previous = r.score;
   }
+}
+
+}  // namespace
+
+// ---- SRD (METHOD.md §6)
+namespace {
+
+as::SrdResult srds(const ms::Mesh& mesh, const ms::LandmarkSet& lm) {
+  as::SafOptions o;
+  o.keep_fields = true;
+  return as::compute_srds(mesh, as::compute_saf(mesh, lm, symmetry_plane(), o));
+}
+
+const as::SrdTwin& twin(const as::SrdResult& r, const std::string& name) {
+  for (const auto& t : r.twins)
+    if (t.landmark == name) return t;
+  throw std::runtime_error("no twin entry for " + name);
+}
+
+TEST(Srd, DistanceIsZeroForItselfAndReversalSwapsTheSignOfTheAngles) {
+  as::Srd a{"Co_L", {{"C", false, {0.5, 0.3, 0.2, 0.0, 0.0, 0.0}}}};  // 1 ring, 6 bins
+  EXPECT_EQ(as::srd_distance(a, a, 6), 0.0);
+  as::Srd rev{"Co_R", {{"C", true, {0.0, 0.0, 0.0, 0.2, 0.3, 0.5}}}};  // the angles negated
+  EXPECT_NEAR(as::srd_distance(a, rev, 6, true, true), 0.0, 1e-12);
+  // Without the reversal the twins differ: half a turn of mass moved, W1 > 1 rad.
+  EXPECT_GT(as::srd_distance(a, rev, 6, true, false), 1.0);
+  // Blocks are matched by configuration and mirror flag; nothing matches → -1.
+  EXPECT_EQ(as::srd_distance(a, rev, 6, false, false), -1);
+  // A shift by one bin (60°) of all the mass costs exactly 60°.
+  as::Srd b{"Co_L", {{"C", false, {0.0, 0.5, 0.3, 0.2, 0.0, 0.0}}}};
+  EXPECT_NEAR(as::srd_distance(a, b, 6), 3.14159265358979 / 3, 1e-12);
+}
+
+TEST(Srd, MirrorTwinsMatchAfterNegatingTheAnglesAndDifferWithout) {
+  // Exactly mirror-symmetric triangulation: every twin's descriptor equals the
+  // bin-reversed descriptor of its partner; the descriptor is chiral, so
+  // without the reversal the twins differ (an intrinsic descriptor could not).
+  const Boomerang P;
+  const ms::Mesh m = boomerang_mesh(P);
+  const auto r = srds(m, boomerang_landmarks(m, P, true));
+  ASSERT_EQ(r.descriptors.size(), 8u);
+  ASSERT_EQ(r.twins.size(), 5u);  // Co, Cr, Go pairs, then Me and Pog with themselves
+  EXPECT_EQ(r.twins[0].twin, ms::mirror_label(r.twins[0].landmark));
+  EXPECT_EQ(r.twins.back().landmark, r.twins.back().twin);
+  for (const auto& t : r.twins) {
+    SCOPED_TRACE(t.landmark);
+    EXPECT_GE(t.mirror_mismatch, 0.0);
+    EXPECT_LT(t.mirror_mismatch, 1e-6);
+    EXPECT_GT(t.handedness, 0.05);  // measured ≥ 0.12
+  }
+  for (const auto& [name, d] : r.descriptors) {
+    SCOPED_TRACE(name);
+    for (const auto& b : d.blocks) {
+      ASSERT_EQ(b.histogram.size(), static_cast<std::size_t>(r.options.rings * r.options.bins));
+      for (int ring = 0; ring < r.options.rings; ++ring) {
+        double s = 0;
+        for (int k = 0; k < r.options.bins; ++k) s += b.histogram[ring * r.options.bins + k];
+        EXPECT_NEAR(s, 1.0, 1e-9);  // every ring reaches surface on this shape
+      }
+    }
+  }
+  // Co_L sits in every default configuration; Me in the mirrored ones too.
+  EXPECT_EQ(r.descriptors.at("Co_L").blocks.size(), as::default_configurations().size());
+}
+
+TEST(Srd, LengtheningOneArmRaisesTheMismatchOfItsLandmarks) {
+  Boomerang P;
+  P.left_scale = 1.15;
+  const ms::Mesh m = boomerang_mesh(P);
+  const auto r = srds(m, boomerang_landmarks(m, P, false));
+  // Measured: Co 0.14, Go 0.067 against 1e-12 when symmetric; the chin, far
+  // from the change, stays lower (Me 0.011).
+  EXPECT_GT(twin(r, "Co_L").mirror_mismatch, 0.03);
+  EXPECT_GT(twin(r, "Go_L").mirror_mismatch, 0.03);
+  EXPECT_GT(twin(r, "Co_L").mirror_mismatch, 2 * twin(r, "Me").mirror_mismatch);
+}
+
+TEST(Srd, InvariantToRigidMotionAndEquivariantUnderMirroring) {
+  const auto& asy = asymmetric();
+  const auto r = srds(asy.mesh, asy.lm);
+  ASSERT_EQ(r.descriptors.size(), 8u);
+  const int B = r.options.bins;
+
+  // Rigid motion: the same descriptors to round-off.
+  const Vec3 k = ms::normalized({0.3, 1, -0.4});
+  const double c = std::cos(0.5), s = std::sin(0.5);
+  auto T = [&](const Vec3& p) { return c * p + s * ms::cross(k, p) + ((1 - c) * ms::dot(k, p)) * k + Vec3{-7, 3, 12}; };
+  ms::Mesh moved = asy.mesh;
+  for (auto& v : moved.vertices) v = T(v);
+  const ms::Plane pl = symmetry_plane();
+  as::SafOptions o;
+  o.keep_fields = true;
+  const auto rm = as::compute_srds(
+      moved, as::compute_saf(moved, map_landmarks(asy.lm, T, false), ms::Plane{T(pl.point), T(pl.point + pl.normal) - T(pl.point)}, o));
+  for (const auto& [name, d] : r.descriptors) EXPECT_LT(as::srd_distance(d, rm.descriptors.at(name), B), 1e-6) << name;
+
+  // Mirrored input with L/R swapped: the new Co_L is the reflection of the old
+  // Co_R, so its descriptor is the old Co_R's with the angles negated, and every
+  // twin mismatch is unchanged.
+  auto M = [&](const Vec3& p) { return pl.reflect(p); };
+  ms::Mesh refl = asy.mesh;
+  for (auto& v : refl.vertices) v = M(v);
+  for (auto& t : refl.faces) std::swap(t[1], t[2]);
+  const auto rr = srds(refl, map_landmarks(asy.lm, M, true));
+  for (const auto& [name, d] : rr.descriptors)
+    EXPECT_LT(as::srd_distance(d, r.descriptors.at(ms::mirror_label(name)), B, true, true), 1e-6) << name;
+  for (const auto& t : r.twins) EXPECT_NEAR(twin(rr, t.landmark).mirror_mismatch, t.mirror_mismatch, 1e-6) << t.landmark;
+  // The asymmetric shape is asymmetric at its rami too.
+  EXPECT_GT(twin(r, "Go_L").mirror_mismatch, 0.01);
 }
 
 }  // namespace
