@@ -7,6 +7,9 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "reports/interpretation.h"
+#include "reports/viewer.h"
+#include "surface/surface.h"
 
 namespace ms::reports {
 namespace {
@@ -22,7 +25,9 @@ std::string fmt(double v, int prec = 2) {
   return b;
 }
 
-std::string base64(const std::string& in) {
+}  // namespace
+
+std::string base64_encode(const std::string& in) {
   static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
   out.reserve((in.size() + 2) / 3 * 4);
@@ -45,6 +50,8 @@ std::string base64(const std::string& in) {
   }
   return out;
 }
+
+namespace {
 
 json::Value stats_json(const asymmetry::DistanceStats& s, bool full) {
   auto o = json::Value::object();
@@ -85,7 +92,7 @@ std::string png_data_uri(const std::string& path) {
   if (!in) return "";
   std::stringstream buf;
   buf << in.rdbuf();
-  return "data:image/png;base64," + base64(buf.str());
+  return "data:image/png;base64," + base64_encode(buf.str());
 }
 
 std::string html_escape(const std::string& s) {
@@ -324,6 +331,72 @@ std::string csv_row(const RunSummary& s, const std::string& status) {
   return o.str();
 }
 
+namespace {
+
+// The headline: one card per number with its interpretation band, then the
+// sources the bands cite (reports/interpretation.h, docs/report.md).
+void headline_html(std::ostringstream& h, const RunSummary& s) {
+  const auto E = html_escape;
+  const auto items = interpret(interpretation_inputs(s));
+  const auto& refs = interpretation_references();
+  std::vector<std::string> cited;  // reference ids in order of first citation
+  auto ref_number = [&](const std::string& id) {
+    for (std::size_t i = 0; i < cited.size(); ++i)
+      if (cited[i] == id) return i + 1;
+    cited.push_back(id);
+    return cited.size();
+  };
+  h << "<div class=\"cards\">\n";
+  for (const auto& x : items) {
+    h << "<div class=\"card band-" << band_name(x.band) << "\" data-key=\"" << E(x.key) << "\" data-band=\""
+      << band_name(x.band) << "\"><div class=\"k\">" << E(x.title) << "</div><div class=\"v\">" << E(x.value_text)
+      << "</div><div class=\"pill\">" << E(band_label(x.band));
+    if (x.provisional && (x.band == Band::Typical || x.band == Band::Mild || x.band == Band::Marked))
+      h << " &middot; provisional";
+    h << "</div>";
+    if (!x.detail.empty()) h << "<div class=\"k\">" << E(x.detail) << "</div>";
+    h << "<div class=\"m\">" << E(x.meaning) << "</div><div class=\"t\">Bands: " << E(x.thresholds);
+    for (const auto& id : x.sources) h << " <a href=\"#ref-" << E(id) << "\">[" << ref_number(id) << "]</a>";
+    h << "</div></div>\n";
+  }
+  h << "</div>\n<p class=\"muted\">The bands place each number against published cut-offs where they exist (menton "
+       "deviation, ramus-height asymmetry index), a common convention (mirror distance) or MandiSym's own phantom "
+       "measurements (SAF score: provisional, phantom-derived, not clinically validated). They describe size, not a "
+       "diagnosis; none has been validated for MandiSym's automatic landmarks and plane. The published cut-offs were "
+       "set on radiographs or CBCT against a facial or cranial midline, not against the mandible's own symmetry "
+       "plane. Compare against a cohort or a pre-operative scan.</p>\n";
+  h << "<ol class=\"refs\">\n";
+  for (const auto& id : cited)
+    for (const auto& r : refs)
+      if (r.id == id) h << "<li id=\"ref-" << E(r.id) << "\">" << E(r.citation) << "</li>\n";
+  h << "</ol>\n";
+}
+
+// The interactive viewer reads the surface this run wrote beside qc/ (run
+// writes mandible.vtp into its output folder before the report). Returns the
+// section, or a line saying why there is none.
+std::string viewer_html(const RunSummary& s, const std::vector<std::string>& figures,
+                        const std::vector<std::string>& views) {
+  const std::string any = !views.empty() ? views.front() : !figures.empty() ? figures.front() : std::string();
+  if (any.empty()) return "<p class=\"muted\">Interactive 3D view not embedded: figures are disabled.</p>\n";
+  const auto vtp = std::filesystem::path(any).parent_path().parent_path() / "mandible.vtp";
+  std::error_code ec;
+  if (!std::filesystem::exists(vtp, ec))
+    return "<p class=\"muted\">Interactive 3D view not embedded: no surface file next to the figures.</p>\n";
+  try {
+    const Mesh mesh = surface::read_vtp(vtp.string());
+    if (mesh.vertices.size() != s.mirror.per_vertex.size())
+      return "<p class=\"muted\">Interactive 3D view not embedded: the surface file does not match this run.</p>\n";
+    const PlaneFrame frame = plane_frame(mesh, s.reference.plane);
+    const ViewerMesh vm = viewer_mesh(mesh, s.mirror.per_vertex, s.saf.per_vertex, frame);
+    return viewer_section_html(vm, frame, s.reference.plane, s.landmarks.landmarks);
+  } catch (const std::exception& e) {
+    return "<p class=\"muted\">Interactive 3D view not embedded: " + html_escape(e.what()) + "</p>\n";
+  }
+}
+
+}  // namespace
+
 std::string report_html(const RunSummary& s, const std::vector<std::string>& figures, const std::vector<std::string>& views,
                         const std::string& views_note) {
   const auto E = html_escape;
@@ -340,7 +413,23 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << ".cards{display:flex;flex-wrap:wrap;gap:1em}.card{border:1px solid #dde3ec;border-radius:8px;padding:.8em 1.2em;"
        "min-width:200px}.card .v{font-size:1.8em;font-weight:600}.card .k{color:#5a6475;font-size:.9em}\n"
     << "figure{display:inline-block;margin:.4em}figure img{max-width:340px;border:1px solid #dde3ec}.views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views figure{margin:0}.views figure img{width:100%;max-width:none}"
-       "figcaption{font-size:.85em;color:#5a6475}\n.muted{color:#5a6475;font-size:.9em}\n</style></head><body>\n";
+       "figcaption{font-size:.85em;color:#5a6475}\n.muted{color:#5a6475;font-size:.9em}\n"
+    << ".cards{display:grid;grid-template-columns:repeat(auto-fill,minmax(330px,1fr))}.card{border-top:5px solid #b8c2d0}"
+       ".card .pill{display:inline-block;border-radius:10px;padding:.05em .6em;margin:.2em 0;font-size:.85em;font-weight:600;"
+       "background:#eef1f5;color:#3d4757}.card .m{font-size:.88em;margin-top:.35em}.card .t{font-size:.8em;color:#5a6475;"
+       "margin-top:.35em}.band-typical{border-top-color:#3c9a5f}.band-typical .pill{background:#e3f3e8;color:#226b3e}"
+       ".band-mild{border-top-color:#e0a020}.band-mild .pill{background:#fff2d6;color:#8a5a00}"
+       ".band-marked{border-top-color:#d0453a}.band-marked .pill{background:#fde4e1;color:#9b2219}"
+       ".refs{font-size:.82em;color:#5a6475}.refs li{margin:.15em 0}\n"
+    << ".viewer{border:1px solid #dde3ec;border-radius:8px;padding:.6em}.viewer-bar{display:flex;flex-wrap:wrap;gap:.4em;"
+       "align-items:center;font-size:.9em}.viewer-bar .sep{width:1em}.viewer-bar button{font:inherit;padding:.15em .7em;"
+       "border:1px solid #b8c2d0;border-radius:5px;background:#f3f6fa;cursor:pointer}.viewer-stage{position:relative;"
+       "margin:.5em 0}.viewer-stage canvas{display:block;width:100%;height:520px;cursor:grab;touch-action:none;"
+       "border:1px solid #eef1f5}.viewer-labels{position:absolute;inset:0;pointer-events:none;overflow:hidden}"
+       ".viewer-labels span{position:absolute;font-size:11px;color:#135a25;background:rgba(255,255,255,.75);"
+       "padding:0 2px;border-radius:2px;white-space:nowrap}.viewer-ramp{height:14px;max-width:420px;border:1px solid #b8c2d0}"
+       ".viewer-ticks{display:flex;justify-content:space-between;max-width:420px;font-size:.8em}\n"
+    << "</style></head><body>\n";
   h << "<h1>Mandibular asymmetry report</h1>\n<p class=\"muted\">MandiSym " << E(s.tool_version) << " &middot; input "
     << E(s.scan.kind) << " &middot; series " << E(s.scan.series_uid.empty() ? "-" : s.scan.series_uid)
     << " &middot; study date " << E(s.scan.study_date.empty() ? "-" : s.scan.study_date) << "</p>\n";
@@ -354,28 +443,17 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << "&hellip;</code></p>\n";
   for (const auto& w : s.warnings) h << "<div class=\"warn\">&#9888; " << E(w) << "</div>\n";
 
-  h << "<h2>Headline</h2>\n<div class=\"cards\">\n";
-  h << "<div class=\"card\"><div class=\"k\">SAF asymmetry score</div><div class=\"v\">"
-    << (s.saf.score >= 0 ? fmt(s.saf.score, 3) : "n/a")
-    << "</div><div class=\"k\">rad; 0 = perfect symmetry (shape through the mirror correspondence)</div></div>\n";
-  h << "<div class=\"card\"><div class=\"k\">Mirror distance RMS / p95</div><div class=\"v\">" << fmt(s.mirror.overall.rms)
-    << " / " << fmt(s.mirror.overall.p95) << "</div><div class=\"k\">mm; surface vs its reflection</div></div>\n";
-  for (const char* n : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg"}) {
-    auto it = s.bilateral.find(n);
-    if (it == s.bilateral.end()) continue;
-    h << "<div class=\"card\"><div class=\"k\">" << E(n) << " L&minus;R</div><div class=\"v\">" << fmt(it->second.diff)
-      << "</div><div class=\"k\">L " << fmt(it->second.L) << ", R " << fmt(it->second.R) << "</div></div>\n";
-  }
-  h << "</div>\n<p class=\"muted\">Interpretation bands are not yet calibrated (see docs/method.md); compare "
-       "against a cohort or a pre-operative scan.</p>\n";
+  h << "<h2>Headline</h2>\n";
+  headline_html(h, s);
 
   auto embed = [&](const std::string& f, const std::string& caption) {
     std::ifstream in(f, std::ios::binary);
     std::stringstream buf;
     buf << in.rdbuf();
-    h << "<figure><img alt=\"" << E(caption) << "\" src=\"data:image/png;base64," << base64(buf.str())
+    h << "<figure><img alt=\"" << E(caption) << "\" src=\"data:image/png;base64," << base64_encode(buf.str())
       << "\"><figcaption>" << E(caption) << "</figcaption></figure>\n";
   };
+  h << viewer_html(s, figures, views);
   h << "<h2>3D views</h2>\n";
   if (views.empty()) {
     h << "<p class=\"muted\">3D views not rendered: " << E(views_note.empty() ? "disabled" : views_note) << "</p>\n";

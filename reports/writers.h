@@ -25,6 +25,9 @@ std::string csv_header();
 std::string csv_quote(const std::string& field);
 std::string csv_row(const RunSummary& s, const std::string& status);
 
+// Standard base64 (RFC 4648, with padding) of arbitrary bytes.
+std::string base64_encode(const std::string& bytes);
+
 // data: URI of a PNG file (for self-contained HTML); empty if unreadable.
 std::string png_data_uri(const std::string& path);
 
