@@ -5,9 +5,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <sstream>
 
 #include "asymmetry/measures.h"
+#include "asymmetry/srd.h"
 #include "core/error.h"
 #include "core/json.h"
 #include "geometry/mesh_geometry.h"
@@ -42,6 +44,8 @@ namespace {
 struct RunData {
   fs::path dir;
   json::Value results;
+  std::map<std::string, asymmetry::Srd> srd;  // from srd.json (runs before 0.1 have none)
+  int srd_bins = 0;
   Mesh mesh;
   LandmarkSet landmarks;
   Plane plane;
@@ -70,6 +74,24 @@ RunData load_run(const fs::path& dir) {
   if (d.results.contains("landmarks"))
     for (const auto& [name, v] : d.results.at("landmarks").items())
       if (v.is_array() && v.size() == 3) d.landmarks.set(name, {v[0].as_number(), v[1].as_number(), v[2].as_number()});
+  if (fs::exists(dir / "srd.json")) {
+    try {
+      const auto j = json::Value::parse(slurp(dir / "srd.json"));
+      d.srd_bins = static_cast<int>(j.at("bins").as_number());
+      for (const auto& [name, blocks] : j.at("landmarks").items()) {
+        asymmetry::Srd x{name, {}};
+        for (std::size_t i = 0; i < blocks.size(); ++i) {
+          asymmetry::SrdBlock b{blocks[i].at("configuration").as_string(), blocks[i].at("mirrored").as_bool(), {}};
+          const auto& h = blocks[i].at("histogram");
+          for (std::size_t k = 0; k < h.size(); ++k) b.histogram.push_back(h[k].as_number());
+          x.blocks.push_back(std::move(b));
+        }
+        d.srd[name] = std::move(x);
+      }
+    } catch (const std::exception& e) {
+      throw Error(ExitCode::InputInvalid, (dir / "srd.json").string() + ": " + e.what());
+    }
+  }
   const auto& sp = d.results.at("symmetry_plane");
   for (int a = 0; a < 3; ++a) {
     d.plane.point[a] = sp.at("point")[static_cast<std::size_t>(a)].as_number();
@@ -188,6 +210,32 @@ int compare_command(const cli::Args& args) {
   table << "</table>\n";
   cj["scores"] = sj;
 
+  // SRD per landmark: how far the descriptor moved (same fields, no mirroring)
+  // and each scan's mismatch with the mirror twin.
+  json::Value srdj = json::Value::object();
+  std::ostringstream srd_table;
+  if (pre.srd_bins > 0 && pre.srd_bins == post.srd_bins) {
+    srd_table << "<table><tr><th>landmark</th><th>descriptor change pre&rarr;post (rad)</th><th>twin mismatch pre</th>"
+                 "<th>twin mismatch post</th></tr>\n";
+    for (const auto& [name, a] : pre.srd) {
+      const auto it = post.srd.find(name);
+      if (it == post.srd.end()) continue;
+      const double d = asymmetry::srd_distance(a, it->second, pre.srd_bins);
+      bool ok1 = false, ok2 = false;
+      const double m1 = number_at(pre.results, {"scores", "saf", "srd", name.c_str(), "mirror_mismatch_rad"}, &ok1);
+      const double m2 = number_at(post.results, {"scores", "saf", "srd", name.c_str(), "mirror_mismatch_rad"}, &ok2);
+      json::Value e = json::Value::object();
+      e["pre_post_distance_rad"] = d >= 0 ? json::Value(d) : json::Value();
+      e["mirror_mismatch_pre_rad"] = ok1 ? json::Value(m1) : json::Value();
+      e["mirror_mismatch_post_rad"] = ok2 ? json::Value(m2) : json::Value();
+      srdj[name] = e;
+      srd_table << "<tr><td>" << reports::html_escape(name) << "</td><td>" << (d >= 0 ? fmt(d, 3) : "n/a") << "</td><td>"
+                << (ok1 ? fmt(m1, 3) : "&ndash;") << "</td><td>" << (ok2 ? fmt(m2, 3) : "&ndash;") << "</td></tr>\n";
+    }
+    srd_table << "</table>\n";
+  }
+  cj["srd"] = srdj;
+
   // Figures: the change map on the aligned POST surface, PRE's plane.
   const auto rv = reports::render_views(aligned, change, reports::ColourMap{"change post - pre (mm)", -5.0, 5.0, true},
                                         aligned_lm, pre.plane, (out / "qc" / "view_change").string());
@@ -214,6 +262,11 @@ int compare_command(const cli::Args& args) {
     << fmt(p95) << " mm, largest outward " << fmt(max_out) << " mm, inward " << fmt(max_in) << " mm. Alignment: "
     << al.landmark_pairs << " common landmarks, then ICP; rotation " << fmt(angle) << "&deg;, translation "
     << fmt(norm(al.transform.t)) << " mm, residual (closest half) " << fmt(al.rms_mm) << " mm.</p>\n";
+  if (!srd_table.str().empty())
+    h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<p class=\"muted\">Signed-angle-field histograms around each landmark "
+         "(docs/method.md, SRD): the change between the scans, and each scan's mismatch with the landmark's mirror twin "
+         "(0 = locally mirror-symmetric; Me and Pog are compared with themselves).</p>\n"
+      << srd_table.str();
   if (rv.files.empty()) {
     h << "<p class=\"muted\">3D views not rendered: " << reports::html_escape(rv.error) << "</p>\n";
   } else {

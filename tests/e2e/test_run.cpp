@@ -340,11 +340,16 @@ TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
   const double ramus = c.at("scores").at("ramus_height_mm L−R").at("change").as_number();
   EXPECT_GT(ramus, 2.5);
   EXPECT_LT(ramus, 4.5);
+  // SRD: the left condyle's neighbourhood changed more than the chin's.
+  const Value& srd = c.at("srd");
+  ASSERT_TRUE(srd.contains("Co_L") && srd.contains("Pog"));
+  EXPECT_GT(srd.at("Co_L").at("pre_post_distance_rad").as_number(), srd.at("Pog").at("pre_post_distance_rad").as_number());
   // The same scan twice: no change.
   ASSERT_EQ(run("compare " + pre.string() + " " + pre.string() + " -o " + same.string() + " -q", &err), 0) << err;
   const Value s = load(same / "compare.json");
   EXPECT_LT(s.at("change").at("p95_mm").as_number(), 0.05);
   EXPECT_NEAR(s.at("scores").at("SAF score (rad)").at("change").as_number(), 0.0, 1e-12);
+  EXPECT_NEAR(s.at("srd").at("Co_L").at("pre_post_distance_rad").as_number(), 0.0, 1e-5);  // srd.json rounds to 1e-6
   // Usage errors.
   EXPECT_EQ(run("compare " + pre.string() + " -o " + same.string()), 2);
   EXPECT_EQ(run("compare " + pre.string() + " /nonexistent/post -o " + same.string()), 3);
