@@ -215,7 +215,7 @@ std::string viewer_section_html(const ViewerMesh& vm, const PlaneFrame& frame, c
     << "<p class=\"viewer-status warn\" hidden></p>\n"
     << "<noscript><p class=\"muted\">The interactive view needs JavaScript; the static views show the same surface."
     << "</p></noscript>\n"
-    << "<p class=\"muted\">Drag to rotate, shift-drag or right-drag to pan, wheel to zoom. In the symmetry plane's frame "
+    << "<p class=\"muted viewer-help\">Drag to rotate, shift-drag or right-drag to pan, wheel to zoom. In the symmetry plane's frame "
     << "(front view: the patient's left on your right). "
     << faces << " triangles";
   if (vm.source_faces > faces) h << " (decimated from " << vm.source_faces << ")";

@@ -16,7 +16,7 @@
     root.setAttribute('data-viewer', state);
     statusBox.textContent = message;
     statusBox.hidden = false;
-    var hide = root.querySelectorAll('.viewer-stage, .viewer-bar, .viewer-legend');
+    var hide = root.querySelectorAll('.viewer-stage, .viewer-bar, .viewer-legend, .viewer-help');
     for (var i = 0; i < hide.length; i++) hide[i].hidden = true;
   }
 

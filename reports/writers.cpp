@@ -421,7 +421,7 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
        ".band-mild{border-top-color:#e0a020}.band-mild .pill{background:#fff2d6;color:#8a5a00}"
        ".band-marked{border-top-color:#d0453a}.band-marked .pill{background:#fde4e1;color:#9b2219}"
        ".refs{font-size:.82em;color:#5a6475}.refs li{margin:.15em 0}\n"
-    << ".viewer{border:1px solid #dde3ec;border-radius:8px;padding:.6em}.viewer-bar{display:flex;flex-wrap:wrap;gap:.4em;"
+    << ".viewer{border:1px solid #dde3ec;border-radius:8px;padding:.6em}.viewer [hidden]{display:none!important}.viewer-bar{display:flex;flex-wrap:wrap;gap:.4em;"
        "align-items:center;font-size:.9em}.viewer-bar .sep{width:1em}.viewer-bar button{font:inherit;padding:.15em .7em;"
        "border:1px solid #b8c2d0;border-radius:5px;background:#f3f6fa;cursor:pointer}.viewer-stage{position:relative;"
        "margin:.5em 0}.viewer-stage canvas{display:block;width:100%;height:520px;cursor:grab;touch-action:none;"
