@@ -2,8 +2,9 @@
 // the ITK / Eigen split, ENGINEERING.md): marching cubes and CGAL repair /
 // remeshing, edge-graph Dijkstra and landmark detection, the Ceres plane fit
 // with mirror-ICP, harmonic solves, heat-kernel smoothing, the full SAF score,
-// mirror distance, and the report's 3D views and mesh writers. Only the
-// stages' value-type headers are included; nothing here may include ITK.
+// the SRD descriptors, mirror distance, and the report's 3D views and mesh
+// writers. Only the stages' value-type headers are included; nothing here may
+// include ITK.
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
@@ -14,6 +15,7 @@
 #include "asymmetry/harmonic.h"
 #include "asymmetry/measures.h"
 #include "asymmetry/saf.h"
+#include "asymmetry/srd.h"
 #include "bench/fixtures.h"
 #include "bench/registry.h"
 #include "geometry/mesh_geometry.h"
@@ -200,6 +202,19 @@ void saf(benchmark::State& state, double edge_mm) {
   state.counters["factorisations"] = static_cast<double>(r.factorisations);
 }
 
+// SRD descriptors from the angle fields of one SAF run (timed: the SRDs only).
+void srd(benchmark::State& state, double edge_mm) {
+  const MeshCase& c = mandible_mesh(edge_mm);
+  asymmetry::SafOptions o;
+  o.keep_fields = true;
+  const auto fields = asymmetry::compute_saf(c.mesh(), anchors(c), c.reference.plane, o);
+  for (auto _ : state) {
+    auto r = asymmetry::compute_srds(c.mesh(), fields);
+    benchmark::DoNotOptimize(&r);
+  }
+  mesh_counters(state, c.mesh());
+}
+
 void mirror_distance(benchmark::State& state, double edge_mm) {
   const MeshCase& c = mandible_mesh(edge_mm);
   for (auto _ : state) {
@@ -279,6 +294,7 @@ void register_mesh_kernels() {
     reg(std::string("asymmetry/harmonic_resolve/") + m.label, harmonic_resolve, m.edge_mm);
     reg(std::string("asymmetry/heat_smoother/") + m.label, heat_smoother, m.edge_mm);
     reg(std::string("asymmetry/saf/") + m.label, saf, m.edge_mm);
+    reg(std::string("asymmetry/srd/") + m.label, srd, m.edge_mm);
     reg(std::string("asymmetry/mirror_distance/") + m.label, mirror_distance, m.edge_mm);
   }
   reg(std::string("report/render_views/") + m35.label, render_views, m35.edge_mm);
