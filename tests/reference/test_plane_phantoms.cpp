@@ -25,6 +25,8 @@ struct Case {
   double yaw, pitch, roll;
   double ramus_L;  // imposed elongation, mm
   bool mirror;
+  double body_L = 0;  // imposed body lengthening, mm
+  double chin = 0;    // imposed chin deviation towards the left, mm
 };
 
 struct Outcome {
@@ -45,6 +47,8 @@ ms::phantom::Phantom phantom(const Case& c) {
   p.pitch_deg = c.pitch;
   p.roll_deg = c.roll;
   p.side[0].ramus_height_mm = c.ramus_L;
+  p.side[0].body_length_mm = c.body_L;
+  p.chin_deviation_mm = c.chin;
   p.mirror = c.mirror;
   return ms::phantom::generate(p);
 }
@@ -143,3 +147,21 @@ TEST(SafPhantoms, GradedRamusIsOrderedAndSeparatedFromSymmetric) {
   const double m4 = saf_score(Case{"ramus4_mirrored", 8, 6, -5, 4, true});
   EXPECT_NEAR(m4, s[2], 0.01 * s[2]);
 }
+
+namespace {
+TEST(SafPhantoms, GradedBodyAndChinAreOrderedAndAboveSymmetric) {
+  // Neutral pose; measured symmetric 0.0038, body +2/4/6 0.026/0.079/0.098,
+  // chin 0.049/0.105/0.169 (docs/method.md).
+  const double sym = saf_score(Case{"symmetric", 0, 0, 0, 0, false});
+  for (const char* kind : {"body", "chin"}) {
+    std::vector<double> s;
+    for (double k : {2.0, 4.0, 6.0}) {
+      Case c{kind, 0, 0, 0, 0, false};
+      (std::string(kind) == "body" ? c.body_L : c.chin) = k;
+      s.push_back(saf_score(c));
+    }
+    EXPECT_GT(s[0], 2 * sym) << kind << " +2 mm";
+    for (std::size_t i = 1; i < s.size(); ++i) EXPECT_GT(s[i], s[i - 1]) << kind << " +" << 2 * (i + 1) << " mm";
+  }
+}
+}  // namespace
