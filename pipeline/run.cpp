@@ -173,6 +173,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       throw Error(ExitCode::Usage, "--edge-length must be >= 0 and --close-handles within [0, 10] mm");
     surf = surface::mesh_from_mask(seg.mask, mo);
     S.mesh = surf.stats;
+    S.surface = surf.mesh;
     if (!surf.stats.closed) S.warnings.push_back("surface: the mesh is not closed; distances near holes are unreliable");
     if (surf.stats.genus > 0)
       S.warnings.push_back("surface: genus " + std::to_string(surf.stats.genus) +

@@ -29,6 +29,7 @@ struct RunSummary {
   double seg_threshold_hu = 0, seg_offset_hu = 0, seg_separation_mm = 0;
   std::string seg_marker_source;
   surface::MeshStats mesh;
+  Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
   landmarks::Result landmarks;
   reference::Result reference;
   asymmetry::SafResult saf;

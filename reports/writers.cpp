@@ -372,23 +372,14 @@ void headline_html(std::ostringstream& h, const RunSummary& s) {
   h << "</ol>\n";
 }
 
-// The interactive viewer reads the surface this run wrote beside qc/ (run
-// writes mandible.vtp into its output folder before the report). Returns the
-// section, or a line saying why there is none.
-std::string viewer_html(const RunSummary& s, const std::vector<std::string>& figures,
-                        const std::vector<std::string>& views) {
-  const std::string any = !views.empty() ? views.front() : !figures.empty() ? figures.front() : std::string();
-  if (any.empty()) return "<p class=\"muted\">Interactive 3D view not embedded: figures are disabled.</p>\n";
-  const auto vtp = std::filesystem::path(any).parent_path().parent_path() / "mandible.vtp";
-  std::error_code ec;
-  if (!std::filesystem::exists(vtp, ec))
-    return "<p class=\"muted\">Interactive 3D view not embedded: no surface file next to the figures.</p>\n";
+// The interactive viewer of the run's surface. Returns the section, or a line
+// saying why there is none.
+std::string viewer_html(const RunSummary& s) {
+  if (s.surface.vertices.empty() || s.surface.vertices.size() != s.mirror.per_vertex.size())
+    return "<p class=\"muted\">Interactive 3D view not embedded: no surface with per-vertex results.</p>\n";
   try {
-    const Mesh mesh = surface::read_vtp(vtp.string());
-    if (mesh.vertices.size() != s.mirror.per_vertex.size())
-      return "<p class=\"muted\">Interactive 3D view not embedded: the surface file does not match this run.</p>\n";
-    const PlaneFrame frame = plane_frame(mesh, s.reference.plane);
-    const ViewerMesh vm = viewer_mesh(mesh, s.mirror.per_vertex, s.saf.per_vertex, frame);
+    const PlaneFrame frame = plane_frame(s.surface, s.reference.plane);
+    const ViewerMesh vm = viewer_mesh(s.surface, s.mirror.per_vertex, s.saf.per_vertex, frame);
     return viewer_section_html(vm, frame, s.reference.plane, s.landmarks.landmarks);
   } catch (const std::exception& e) {
     return "<p class=\"muted\">Interactive 3D view not embedded: " + html_escape(e.what()) + "</p>\n";
@@ -453,7 +444,7 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     h << "<figure><img alt=\"" << E(caption) << "\" src=\"data:image/png;base64," << base64_encode(buf.str())
       << "\"><figcaption>" << E(caption) << "</figcaption></figure>\n";
   };
-  h << viewer_html(s, figures, views);
+  h << viewer_html(s);
   h << "<h2>3D views</h2>\n";
   if (views.empty()) {
     h << "<p class=\"muted\">3D views not rendered: " << E(views_note.empty() ? "disabled" : views_note) << "</p>\n";
@@ -519,6 +510,20 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << (s.saf.correspondence_free >= 0 ? fmt(s.saf.correspondence_free, 4) : "n/a")
     << " rad. The SAF comparison is symmetrised, so its map marks <em>where</em> the two sides differ (a left/right "
        "region pair), not which side is abnormal; the signed mirror distance shows which side bulges.</p>\n";
+  if (!s.srd.twins.empty()) {
+    h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<table><tr><th>landmark</th><th>twin</th><th>twin mismatch (rad)</th>"
+         "<th>handedness (rad)</th></tr>\n";
+    for (const auto& t : s.srd.twins)
+      h << "<tr><td>" << E(t.landmark) << "</td><td>" << E(t.twin) << "</td><td>"
+        << (t.mirror_mismatch >= 0 ? fmt(t.mirror_mismatch, 3) : "n/a") << "</td><td>"
+        << (t.handedness >= 0 ? fmt(t.handedness, 3) : "n/a") << "</td></tr>\n";
+    h << "</table>\n<p class=\"muted\">Signed-angle-field histograms over 5 mm rings around each landmark "
+         "(METHOD.md &sect;6). Twin mismatch compares a landmark with its mirror twin after negating the angles "
+         "(0 = locally mirror-symmetric; Me and Pog with themselves); handedness is the same comparison without "
+         "negating, i.e. how far the descriptor tells the twins apart. It localises asymmetry, it does not grade it "
+         "(on phantoms: symmetric 0.01&ndash;0.03 rad, a modified ramus or body 0.04&ndash;0.18 at its condyle or "
+         "coronoid). Descriptors: srd.json.</p>\n";
+  }
 
   h << "<h2>Surface and plane</h2>\n<table><tr><th>quantity</th><th>value</th></tr>\n"
     << "<tr><td>segmentation volume (mm&sup3;)</td><td>" << fmt(s.seg_volume_mm3, 0) << "</td></tr>\n"
