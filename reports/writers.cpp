@@ -209,6 +209,19 @@ json::Value results_json(const RunSummary& s) {
     e["handedness_rad"] = num_or_null(t.handedness, t.handedness >= 0);
   }
 
+  // Interpretation bands of the headline numbers (docs/report.md: thresholds and sources).
+  auto& bands = root["interpretation"];
+  bands = Value::object();
+  for (const auto& it : interpret(interpretation_inputs(s))) {
+    auto& e = bands[it.key];
+    e["band"] = band_name(it.band);
+    e["value"] = num_or_null(it.banded_value);
+    e["thresholds"] = it.thresholds;
+    e["provisional"] = it.provisional;
+    e["sources"] = Value::array();
+    for (const auto& id : it.sources) e["sources"].push_back(id);
+  }
+
   auto& mir = root["scores"]["mirror"];
   mir = stats_json(s.mirror.overall, true);
   mir["regions"] = Value::object();

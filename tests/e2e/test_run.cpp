@@ -131,6 +131,13 @@ TEST(EndToEnd, ResultsJsonHasEveryKeyOfOutputsMd) {
   EXPECT_LT(std::abs(r.at("segmentation").at("calibration_offset_hu").as_number()), 20.0);
   EXPECT_GT(r.at("segmentation").at("separation_depth_mm").as_number(), 0.0);
   for (const auto& n : {"Co_L", "Me"}) EXPECT_EQ(r.at("landmarks").at(n).size(), 3u);
+  // Interpretation bands (docs/report.md): the symmetric sample is typical on every banded number.
+  for (const char* k : {"saf_score", "mirror_distance", "ramus_height", "menton_deviation"}) {
+    const Value& b = r.at("interpretation").at(k);
+    EXPECT_EQ(b.at("band").as_string(), "typical") << k;
+    EXPECT_TRUE(b.at("value").is_number()) << k;
+  }
+  EXPECT_TRUE(r.at("interpretation").at("saf_score").at("provisional").as_bool());
 }
 
 TEST(EndToEnd, SymmetricSampleMatchesItsGroundTruthPlane) {
