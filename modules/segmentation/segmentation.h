@@ -28,6 +28,14 @@ struct Options {
   // Axes coarser than this (mm) are interpolated (trilinear) to it for the
   // whole segmentation; the mask is brought back to the input grid.
   double max_working_spacing_mm = 2.0;
+  // Watershed regions up to this size (cm3) that touch the mandible's region
+  // more than any other region are joined to it: tooth crowns or thin
+  // processes whose neck the core depth cut off (docs/segmentation.md).
+  double fragment_merge_cm3 = 4.0;
+  // Beyond the band around the mandible's core, thick parts of its region are
+  // kept up to this distance (mm) from the core: about a molar crown's height,
+  // for crowns whose thin dense shell left no core (docs/segmentation.md).
+  double thick_reach_mm = 8.0;
 };
 
 struct Result {
