@@ -46,7 +46,8 @@ const cli::CommandSpec& run_spec() {
        {"label", "N", "with --mask: the mandible's label (TotalSegmentator craniofacial_structures: 1)", "the only label"},
        {"target-faces", "N", "decimate the surface above this many triangles", "60000"},
        {"edge-length", "MM", "isotropic remeshing edge length (0 = no CGAL repair/remeshing)", "1"},
-       {"close-handles", "MM", "closing radius before meshing, removes handles such as teeth in contact (0 = none)", "0"},
+       {"close-handles", "MM|auto", "closing radius before meshing, removes handles such as teeth in contact; auto = only "
+                                    "when the surface has handles, the smallest of 1, 2, 3 mm that removes them (0 = never)", "auto"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
        {"saf-smoothing", "MM", "heat-kernel sigma smoothing each signed angle field before the mirror comparison "
                                "(0 = per face, METHOD.md's literal definition)", "6"},
@@ -97,6 +98,13 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   const std::string anchor_choice = args.get("saf-anchors", "reference");
   if (anchor_choice != "reference" && anchor_choice != "detected")
     throw Error(ExitCode::Usage, "--saf-anchors must be reference or detected, not '" + anchor_choice + "'");
+  surface::Options mo;
+  mo.target_faces = static_cast<std::size_t>(args.number("target-faces", static_cast<double>(mo.target_faces)));
+  mo.target_edge_mm = args.number("edge-length", mo.target_edge_mm);
+  mo.close_handles_auto = args.get("close-handles", "auto") == "auto";
+  if (!mo.close_handles_auto) mo.close_handles_mm = args.number("close-handles", mo.close_handles_mm);
+  if (!(mo.target_edge_mm >= 0) || !(mo.close_handles_mm >= 0) || mo.close_handles_mm > 10)
+    throw Error(ExitCode::Usage, "--edge-length must be >= 0 and --close-handles auto or within [0, 10] mm");
   const bool quiet = args.has("quiet");
   std::ostringstream log;
   auto say = [&](const std::string& line) {
@@ -139,7 +147,6 @@ int run_command(const cli::Args& args, const std::string& command_line) {
 
   // Stages 2-6: an error names the input it happened on.
   segmentation::Options so;
-  surface::Options mo;
   segmentation::Result seg;
   surface::Result surf;
   asymmetry::Regions regions;
@@ -166,18 +173,20 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     stage("segment", 2);
 
     // 3. surface
-    mo.target_faces = static_cast<std::size_t>(args.number("target-faces", static_cast<double>(mo.target_faces)));
-    mo.target_edge_mm = args.number("edge-length", mo.target_edge_mm);
-    mo.close_handles_mm = args.number("close-handles", mo.close_handles_mm);
-    if (mo.target_edge_mm < 0 || mo.close_handles_mm < 0 || mo.close_handles_mm > 10)
-      throw Error(ExitCode::Usage, "--edge-length must be >= 0 and --close-handles within [0, 10] mm");
     surf = surface::mesh_from_mask(seg.mask, mo);
     S.mesh = surf.stats;
     S.surface = surf.mesh;
+    S.closing_mm = surf.closing_mm;
+    S.genus_before_closing = surf.genus_before_closing;
+    if (surf.genus_before_closing > 0 && surf.closing_mm > 0)
+      S.warnings.push_back("surface: " + std::to_string(surf.genus_before_closing) + " handle(s) (e.g. teeth in contact) removed by a " +
+                           num(surf.closing_mm) + " mm closing before meshing; they would distort the harmonic fields "
+                           "(--close-handles 0 keeps them)");
     if (!surf.stats.closed) S.warnings.push_back("surface: the mesh is not closed; distances near holes are unreliable");
     if (surf.stats.genus > 0)
       S.warnings.push_back("surface: genus " + std::to_string(surf.stats.genus) +
-                           " (handles, e.g. teeth in contact or canals); geodesic distances may shortcut through them (--close-handles)");
+                           " (handles, e.g. teeth in contact or canals) that a 3 mm closing does not remove; geodesic distances and "
+                           "harmonic fields may shortcut through them");
     if (surf.repair.self_intersections_after > 0)
       S.warnings.push_back("surface: " + std::to_string(surf.repair.self_intersections_after) + " self-intersecting triangle pairs remain");
     stage("surface", 3);
@@ -224,6 +233,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.parameters["saf_disk_radius_mm"] = num(sao.disk_radius_mm);
   S.parameters["saf_smoothing_mm"] = num(sao.smoothing_mm);
   S.parameters["saf_anchors"] = anchor_choice;
+  S.parameters["surface_close_handles"] = args.get("close-handles", "auto");
   S.parameters["landmark_method"] = S.landmarks.method;
 
   // ---- outputs, staged then moved into place ----

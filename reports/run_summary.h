@@ -30,6 +30,8 @@ struct RunSummary {
   std::string seg_marker_source;
   surface::MeshStats mesh;
   Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
+  double closing_mm = 0;          // closing before meshing (0 = none)
+  int genus_before_closing = -1;  // genus of the unclosed surface when automatic closing ran
   landmarks::Result landmarks;
   reference::Result reference;
   asymmetry::SafResult saf;

@@ -162,6 +162,8 @@ json::Value results_json(const RunSummary& s) {
   mesh["genus"] = s.mesh.genus >= 0 ? Value(s.mesh.genus) : Value();
   mesh["closed"] = s.mesh.closed;
   mesh["manifold"] = s.mesh.manifold;
+  mesh["closing_mm"] = s.closing_mm;
+  mesh["genus_before_closing"] = s.genus_before_closing >= 0 ? Value(s.genus_before_closing) : Value();
 
   auto& lm = root["landmarks"];
   lm = Value::object();

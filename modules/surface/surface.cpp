@@ -95,7 +95,7 @@ MeshStats measure(const Mesh& m) {
   return s;
 }
 
-Result mesh_from_mask(const Mask& mask, const Options& opt) {
+static Result mesh_once(const Mask& mask, const Options& opt) {
   const Geometry& g = mask.geom;
   // Crop to the mask's bounding box plus a margin of empty voxels so the
   // surface closes at the scan border.
@@ -193,6 +193,39 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
     for (auto& f : r.mesh.faces) std::swap(f[1], f[2]);
     r.stats.volume_mm3 = -r.stats.volume_mm3;
   }
+  return r;
+}
+
+Result mesh_from_mask(const Mask& mask, const Options& opt) {
+  if (!opt.close_handles_auto || opt.close_handles_mm > 0) {
+    Result r = mesh_once(mask, opt);
+    r.closing_mm = opt.close_handles_mm;
+    return r;
+  }
+  // The topology is decided on the raw flying-edges surface (no CGAL repair
+  // or remeshing, ~10 x cheaper); only the chosen radius is meshed in full.
+  auto raw_genus = [&](double radius) {
+    Options o = opt;
+    o.close_handles_mm = radius;
+    o.target_edge_mm = 0;
+    return mesh_once(mask, o).stats.genus;
+  };
+  const int g0 = raw_genus(0);
+  if (g0 > 0) {
+    const double finest = std::min({mask.geom.spacing[0], mask.geom.spacing[1], mask.geom.spacing[2]});
+    for (double radius : {1.0, 2.0, 3.0}) {
+      if (radius < finest || raw_genus(radius) != 0) continue;  // below a voxel the kernel is a single voxel
+      Options o = opt;
+      o.close_handles_mm = radius;
+      Result c = mesh_once(mask, o);
+      if (c.stats.genus != 0) continue;  // repair changed the topology: try the next radius
+      c.closing_mm = radius;
+      c.genus_before_closing = g0;
+      return c;
+    }
+  }
+  Result r = mesh_once(mask, opt);
+  if (r.stats.genus > 0) r.genus_before_closing = r.stats.genus;
   return r;
 }
 

@@ -16,6 +16,11 @@ namespace ms::surface {
 struct Options {
   double smoothing_sigma_mm = 0.6;  // Gaussian pre-smoothing of the binary mask
   double close_handles_mm = 0;      // closing radius before meshing (0 = none)
+  // When the surface has handles (genus > 0) and close_handles_mm is 0, mesh
+  // again with a closing of 1, 2, then 3 mm (radii below the voxel size are
+  // skipped) and keep the first genus-0 result; none reaching genus 0 keeps
+  // the unclosed surface (docs/surface.md).
+  bool close_handles_auto = false;
   std::size_t target_faces = 60000; // decimate above this many triangles (0 = never)
   double target_edge_mm = 1.0;      // isotropic remeshing edge length (0 = no CGAL repair/remeshing)
   int remesh_iterations = 3;
@@ -51,6 +56,8 @@ struct Result {
   Mesh mesh;
   MeshStats stats;
   RepairReport repair;
+  double closing_mm = 0;          // closing radius applied (0 = none)
+  int genus_before_closing = -1;  // genus of the unclosed surface when auto closing ran
 };
 
 // Throws ms::Error(GeometryFailed) if the mask yields no surface.

@@ -631,6 +631,8 @@ TEST(BadInput, SafOptionsOutOfRangeAreRefusedBeforeAnyWork) {
   write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
   expect_refused(run_on(in, t.out(), {"--saf-anchors", "both"}), 2, t.out(), {"'both'"});
   expect_refused(run_on(in, t.out(), {"--saf-smoothing", "-1"}), 2, t.out(), {"--saf-smoothing"});
+  expect_refused(run_on(in, t.out(), {"--close-handles", "11"}), 2, t.out(), {"--close-handles"});
+  expect_refused(run_on(in, t.out(), {"--close-handles", "sometimes"}), 2, t.out(), {"--close-handles"});
 }
 
 TEST(BadInput, OrientationCodeOfWrongLength) {

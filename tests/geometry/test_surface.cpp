@@ -430,3 +430,49 @@ TEST(SurfaceMeasure, TorusHasGenusOne) {
 }
 
 }  // namespace
+
+namespace {
+// A 30 x 20 x 20 mm block (1 mm voxels) pierced along y through its middle by
+// a square tunnel `width` voxels wide: one handle.
+ms::Mask pierced_block(int width) {
+  ms::Mask m;
+  m.geom.size = {40, 30, 30};
+  m.data.assign(m.geom.voxel_count(), 0);
+  const long k0 = 15 - width / 2, i0 = 20 - width / 2;  // tunnel: [i0, i0 + width) x [k0, k0 + width)
+  for (long k = 5; k < 25; ++k)
+    for (long j = 5; j < 25; ++j)
+      for (long i = 5; i < 35; ++i) {
+        const bool tunnel = i >= i0 && i < i0 + width && k >= k0 && k < k0 + width;
+        m.data[m.geom.linear(i, j, k)] = !tunnel;
+      }
+  return m;
+}
+}  // namespace
+
+TEST(Surface, AutoClosingRemovesANarrowHandleAndKeepsAWideOne) {
+  ms::surface::Options plain;
+  const auto open = ms::surface::mesh_from_mask(pierced_block(2), plain);
+  ASSERT_EQ(open.stats.genus, 1);
+  EXPECT_EQ(open.closing_mm, 0);
+
+  ms::surface::Options o;
+  o.close_handles_auto = true;
+  const auto closed = ms::surface::mesh_from_mask(pierced_block(2), o);
+  EXPECT_EQ(closed.stats.genus, 0);
+  EXPECT_GE(closed.closing_mm, 1.0);
+  EXPECT_LE(closed.closing_mm, 2.0);
+  EXPECT_EQ(closed.genus_before_closing, 1);
+  EXPECT_NEAR(closed.stats.volume_mm3, open.stats.volume_mm3, 0.05 * open.stats.volume_mm3);
+
+  // A 10 mm tunnel is anatomy, not an artefact: no radius up to 3 mm closes it,
+  // and the unclosed surface is kept.
+  const auto wide = ms::surface::mesh_from_mask(pierced_block(10), o);
+  EXPECT_EQ(wide.stats.genus, 1);
+  EXPECT_EQ(wide.closing_mm, 0);
+  EXPECT_EQ(wide.genus_before_closing, 1);
+
+  // An explicit radius wins over auto.
+  ms::surface::Options fixed = o;
+  fixed.close_handles_mm = 3;
+  EXPECT_EQ(ms::surface::mesh_from_mask(pierced_block(2), fixed).closing_mm, 3.0);
+}
