@@ -136,17 +136,23 @@ void plane_fit(benchmark::State& state, double edge_mm, bool mirror_icp) {
 // Disk centres as the pipeline places them (reference configuration).
 LandmarkSet anchors(const MeshCase& c) { return asymmetry::saf_anchors(c.landmarks.landmarks, c.reference.reference); }
 
+// The (Co_L, Me) disk centres of the harmonic kernels; skips the benchmark
+// when the mesh lacks either.
+bool co_me_disks(benchmark::State& state, const LandmarkSet& lm, const Vec3*& a, const Vec3*& b) {
+  a = lm.find("Co_L");
+  b = lm.find("Me");
+  if (a && b) return true;
+  state.SkipWithError("Co_L or Me not detected on the benchmark mesh");
+  return false;
+}
+
 // One harmonic field from scratch: Laplacian assembly, one factorisation of
 // the Dirichlet set (Co_L, Me), one solve.
 void harmonic_field(benchmark::State& state, double edge_mm) {
   const MeshCase& c = mandible_mesh(edge_mm);
   const LandmarkSet lm = anchors(c);
-  const Vec3* a = lm.find("Co_L");
-  const Vec3* b = lm.find("Me");
-  if (!a || !b) {
-    state.SkipWithError("Co_L or Me not detected on the benchmark mesh");
-    return;
-  }
+  const Vec3 *a = nullptr, *b = nullptr;
+  if (!co_me_disks(state, lm, a, b)) return;
   for (auto _ : state) {
     asymmetry::HarmonicFieldSolver solver(c.mesh());
     auto u = solver.solve(*a, *b);
@@ -159,12 +165,8 @@ void harmonic_field(benchmark::State& state, double edge_mm) {
 void harmonic_resolve(benchmark::State& state, double edge_mm) {
   const MeshCase& c = mandible_mesh(edge_mm);
   const LandmarkSet lm = anchors(c);
-  const Vec3* a = lm.find("Co_L");
-  const Vec3* b = lm.find("Me");
-  if (!a || !b) {
-    state.SkipWithError("Co_L or Me not detected on the benchmark mesh");
-    return;
-  }
+  const Vec3 *a = nullptr, *b = nullptr;
+  if (!co_me_disks(state, lm, a, b)) return;
   asymmetry::HarmonicFieldSolver solver(c.mesh());
   solver.prepare({{*a, *b}});
   for (auto _ : state) {

@@ -124,12 +124,7 @@ double number_at(const json::Value& v, std::initializer_list<const char*> path, 
   return *ok ? cur->as_number() : NAN;
 }
 
-std::string fmt(double v, int prec = 2) {
-  if (!std::isfinite(v)) return "n/a";
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*f", prec, v);
-  return b;
-}
+using reports::fixed;
 
 }  // namespace
 
@@ -204,8 +199,8 @@ int compare_command(const cli::Args& args) {
     e["post"] = ok2 ? json::Value(b) : json::Value();
     e["change"] = ok1 && ok2 ? json::Value(b - a) : json::Value();
     sj[r.label] = e;
-    table << "<tr><td>" << reports::html_escape(r.label) << "</td><td>" << (ok1 ? fmt(a, r.prec) : "n/a") << "</td><td>"
-          << (ok2 ? fmt(b, r.prec) : "n/a") << "</td><td>" << (ok1 && ok2 ? fmt(b - a, r.prec) : "n/a") << "</td></tr>\n";
+    table << "<tr><td>" << reports::html_escape(r.label) << "</td><td>" << (ok1 ? fixed(a, r.prec) : "n/a") << "</td><td>"
+          << (ok2 ? fixed(b, r.prec) : "n/a") << "</td><td>" << (ok1 && ok2 ? fixed(b - a, r.prec) : "n/a") << "</td></tr>\n";
   }
   table << "</table>\n";
   cj["scores"] = sj;
@@ -229,8 +224,8 @@ int compare_command(const cli::Args& args) {
       e["mirror_mismatch_pre_rad"] = ok1 ? json::Value(m1) : json::Value();
       e["mirror_mismatch_post_rad"] = ok2 ? json::Value(m2) : json::Value();
       srdj[name] = e;
-      srd_table << "<tr><td>" << reports::html_escape(name) << "</td><td>" << (d >= 0 ? fmt(d, 3) : "n/a") << "</td><td>"
-                << (ok1 ? fmt(m1, 3) : "&ndash;") << "</td><td>" << (ok2 ? fmt(m2, 3) : "&ndash;") << "</td></tr>\n";
+      srd_table << "<tr><td>" << reports::html_escape(name) << "</td><td>" << (d >= 0 ? fixed(d, 3) : "n/a") << "</td><td>"
+                << (ok1 ? fixed(m1, 3) : "&ndash;") << "</td><td>" << (ok2 ? fixed(m2, 3) : "&ndash;") << "</td></tr>\n";
     }
     srd_table << "</table>\n";
   }
@@ -258,10 +253,10 @@ int compare_command(const cli::Args& args) {
   h << "<h2>Scores</h2>\n" << table.str()
     << "<p class=\"muted\">change = post &minus; pre. Each scan's scores are measured on its own surface and symmetry "
        "plane; see each run's report.html for details.</p>\n"
-    << "<h2>Surface change (post aligned to pre)</h2>\n<p>Mean |change| " << fmt(mean_abs) << " mm, 95th percentile "
-    << fmt(p95) << " mm, largest outward " << fmt(max_out) << " mm, inward " << fmt(max_in) << " mm. Alignment: "
-    << al.landmark_pairs << " common landmarks, then ICP; rotation " << fmt(angle) << "&deg;, translation "
-    << fmt(norm(al.transform.t)) << " mm, residual (closest half) " << fmt(al.rms_mm) << " mm.</p>\n";
+    << "<h2>Surface change (post aligned to pre)</h2>\n<p>Mean |change| " << fixed(mean_abs) << " mm, 95th percentile "
+    << fixed(p95) << " mm, largest outward " << fixed(max_out) << " mm, inward " << fixed(max_in) << " mm. Alignment: "
+    << al.landmark_pairs << " common landmarks, then ICP; rotation " << fixed(angle) << "&deg;, translation "
+    << fixed(norm(al.transform.t)) << " mm, residual (closest half) " << fixed(al.rms_mm) << " mm.</p>\n";
   if (!srd_table.str().empty())
     h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<p class=\"muted\">Signed-angle-field histograms around each landmark "
          "(docs/method.md, SRD): the change between the scans, and each scan's mismatch with the landmark's mirror twin "

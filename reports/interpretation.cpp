@@ -1,17 +1,11 @@
 #include "reports/interpretation.h"
+#include "reports/writers.h"
 
 #include <cmath>
 #include <cstdio>
 
 namespace ms::reports {
 namespace {
-
-std::string num(double v, int prec) {
-  if (!std::isfinite(v)) return "n/a";
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*f", prec, v);
-  return b;
-}
 
 std::string signed_num(double v, int prec) {
   if (!std::isfinite(v)) return "n/a";
@@ -21,6 +15,24 @@ std::string signed_num(double v, int prec) {
 }
 
 const char* side_of(double signed_mm) { return signed_mm > 0 ? "towards the left" : "towards the right"; }
+
+// A left-right difference shown with its meaning but without a band.
+Interpretation unbanded_difference(const std::string& key, const std::string& title, double left, double right, int prec,
+                                   const std::string& unit, const std::string& between, const std::string& missing,
+                                   const std::string& meaning, const std::string& thresholds) {
+  Interpretation x;
+  x.key = key;
+  x.title = title;
+  const double diff = left - right;
+  const bool ok = std::isfinite(diff);
+  x.value_text = ok ? signed_num(diff, prec) + unit : "n/a";
+  x.detail = ok ? "L " + fixed(left, 1) + unit + ", R " + fixed(right, 1) + unit + " (" + between + ")" : missing;
+  x.banded_value = ok ? std::abs(diff) : kNaN;
+  x.band = ok ? Band::Unbanded : Band::Unavailable;
+  x.meaning = meaning;
+  x.thresholds = thresholds;
+  return x;
+}
 
 }  // namespace
 
@@ -102,15 +114,15 @@ std::vector<Interpretation> interpret(const InterpretationInputs& in) {
     Interpretation x;
     x.key = "saf_score";
     x.title = "SAF asymmetry score";
-    x.value_text = std::isfinite(in.saf_score) ? num(in.saf_score, 3) + " rad" : "n/a";
+    x.value_text = std::isfinite(in.saf_score) ? fixed(in.saf_score, 3) + " rad" : "n/a";
     x.banded_value = in.saf_score;
     x.band = classify(in.saf_score, kSafThresholds);
     x.meaning =
         "How much the shape of one side differs from the mirror image of the other, compared through harmonic-field "
         "angles (0 = perfect symmetry). MandiSym's own metric: there is no published threshold.";
-    x.thresholds = "below " + num(kSafThresholds.mild, 3) + " typical (all symmetric phantoms); " +
-                   num(kSafThresholds.mild, 3) + "-" + num(kSafThresholds.marked, 3) +
-                   " mild (like a 2 mm ramus elongation); " + num(kSafThresholds.marked, 3) +
+    x.thresholds = "below " + fixed(kSafThresholds.mild, 3) + " typical (all symmetric phantoms); " +
+                   fixed(kSafThresholds.mild, 3) + "-" + fixed(kSafThresholds.marked, 3) +
+                   " mild (like a 2 mm ramus elongation); " + fixed(kSafThresholds.marked, 3) +
                    " and above marked (like a 4 mm ramus or 2 mm body/chin change). Provisional, phantom-derived, "
                    "not clinically validated.";
     x.sources = {"mandisym_phantoms"};
@@ -121,7 +133,7 @@ std::vector<Interpretation> interpret(const InterpretationInputs& in) {
     Interpretation x;
     x.key = "mirror_distance";
     x.title = "Mirror distance RMS / p95";
-    x.value_text = num(in.mirror_rms_mm, 2) + " / " + num(in.mirror_p95_mm, 2) + " mm";
+    x.value_text = fixed(in.mirror_rms_mm, 2) + " / " + fixed(in.mirror_p95_mm, 2) + " mm";
     x.banded_value = in.mirror_p95_mm;
     x.band = classify(in.mirror_p95_mm, kMirrorP95Thresholds);
     x.detail = "band from the p95; RMS is shown for comparison between scans";
@@ -143,8 +155,8 @@ std::vector<Interpretation> interpret(const InterpretationInputs& in) {
     const double diff = in.ramus_L_mm - in.ramus_R_mm;
     const double idx = habets_index_pct(in.ramus_L_mm, in.ramus_R_mm);
     x.value_text = std::isfinite(diff) ? signed_num(diff, 2) + " mm" : "n/a";
-    x.detail = std::isfinite(diff) ? "L " + num(in.ramus_L_mm, 1) + ", R " + num(in.ramus_R_mm, 1) +
-                                         " mm (Co\xE2\x80\x93Go); asymmetry index " + num(idx, 1) + " %"
+    x.detail = std::isfinite(diff) ? "L " + fixed(in.ramus_L_mm, 1) + ", R " + fixed(in.ramus_R_mm, 1) +
+                                         " mm (Co\xE2\x80\x93Go); asymmetry index " + fixed(idx, 1) + " %"
                                    : "Co or Go missing on a side";
     x.banded_value = idx;
     x.band = classify(idx, kRamusIndexThresholds);
@@ -162,7 +174,7 @@ std::vector<Interpretation> interpret(const InterpretationInputs& in) {
     x.key = "menton_deviation";
     x.title = "Menton deviation from the plane";
     const double d = in.menton_to_plane_mm;
-    x.value_text = std::isfinite(d) ? num(std::abs(d), 2) + " mm" : "n/a";
+    x.value_text = std::isfinite(d) ? fixed(std::abs(d), 2) + " mm" : "n/a";
     x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the mandible's symmetry plane" : "menton not found";
     x.banded_value = std::isfinite(d) ? std::abs(d) : kNaN;
     x.band = classify(x.banded_value, kMentonThresholds);
@@ -176,35 +188,16 @@ std::vector<Interpretation> interpret(const InterpretationInputs& in) {
     x.sources = {"masuoka2007", "nur2016", "thai_chin"};
     out.push_back(x);
   }
-  {  // Gonial angle: no published cut-off found.
-    Interpretation x;
-    x.key = "gonial_angle";
-    x.title = "Gonial angle L\xE2\x88\x92R";
-    const double diff = in.gonial_L_deg - in.gonial_R_deg;
-    x.value_text = std::isfinite(diff) ? signed_num(diff, 1) + "\xC2\xB0" : "n/a";
-    x.detail = std::isfinite(diff) ? "L " + num(in.gonial_L_deg, 1) + "\xC2\xB0, R " + num(in.gonial_R_deg, 1) +
-                                         "\xC2\xB0 (Co\xE2\x80\x93Go\xE2\x80\x93Me)"
-                                   : "Co, Go or Me missing on a side";
-    x.banded_value = std::isfinite(diff) ? std::abs(diff) : kNaN;
-    x.band = std::isfinite(diff) ? Band::Unbanded : Band::Unavailable;
-    x.meaning = "Difference between the angles at gonion (condylion\xE2\x80\x93gonion\xE2\x80\x93menton) of the two sides.";
-    x.thresholds = "no published cut-off found for a 3D gonial angle difference; not banded.";
-    out.push_back(x);
-  }
-  {  // Body length: no published cut-off found.
-    Interpretation x;
-    x.key = "body_length";
-    x.title = "Body length L\xE2\x88\x92R";
-    const double diff = in.body_L_mm - in.body_R_mm;
-    x.value_text = std::isfinite(diff) ? signed_num(diff, 2) + " mm" : "n/a";
-    x.detail = std::isfinite(diff) ? "L " + num(in.body_L_mm, 1) + ", R " + num(in.body_R_mm, 1) + " mm (Go\xE2\x80\x93Me)"
-                                   : "Go or Me missing";
-    x.banded_value = std::isfinite(diff) ? std::abs(diff) : kNaN;
-    x.band = std::isfinite(diff) ? Band::Unbanded : Band::Unavailable;
-    x.meaning = "Difference in mandibular body length (gonion to menton) between the sides.";
-    x.thresholds = "no published cut-off found for this 3D distance; not banded.";
-    out.push_back(x);
-  }
+  // No published cut-off found for these two: shown, not banded.
+  out.push_back(unbanded_difference("gonial_angle", "Gonial angle L\xE2\x88\x92R", in.gonial_L_deg, in.gonial_R_deg, 1,
+                                    "\xC2\xB0", "Co\xE2\x80\x93Go\xE2\x80\x93Me", "Co, Go or Me missing on a side",
+                                    "Difference between the angles at gonion (condylion\xE2\x80\x93gonion\xE2\x80\x93menton) "
+                                    "of the two sides.",
+                                    "no published cut-off found for a 3D gonial angle difference; not banded."));
+  out.push_back(unbanded_difference("body_length", "Body length L\xE2\x88\x92R", in.body_L_mm, in.body_R_mm, 2, " mm",
+                                    "Go\xE2\x80\x93Me", "Go or Me missing",
+                                    "Difference in mandibular body length (gonion to menton) between the sides.",
+                                    "no published cut-off found for this 3D distance; not banded."));
   return out;
 }
 

@@ -26,6 +26,7 @@
 #include <filesystem>
 
 #include "reports/display.h"
+#include "reports/viewer.h"
 #include "surface/vtk_mesh.h"
 
 namespace ms::reports {
@@ -120,11 +121,8 @@ RenderedViews render_views(const Mesh& mesh, const std::vector<double>& values, 
 
   // Frame of the symmetry plane; the view directions follow it, so a posed
   // head is shown upright.
-  const Vec3 ml = normalized(plane.normal);
-  Vec3 up{0, 0, 1};
-  if (std::abs(dot(up, ml)) > 0.9) up = {0, 1, 0};
-  const Vec3 si = normalized(up - dot(up, ml) * ml);
-  const Vec3 ap = cross(si, ml);  // posterior
+  const PlaneFrame frame = plane_frame(mesh, plane);  // shared with the interactive viewer
+  const Vec3 ml = frame.x, si = frame.y, ap = -1.0 * frame.z;  // ap: posterior
   double b[6];
   pd->GetBounds(b);
   const Vec3 c{(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2};

@@ -49,12 +49,6 @@ std::string script_safe(const std::string& json) {
   return o;
 }
 
-std::string num(double v, int prec) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*f", prec, v);
-  return b;
-}
-
 }  // namespace
 
 Vec3 PlaneFrame::to_frame(const Vec3& p) const {
@@ -64,8 +58,8 @@ Vec3 PlaneFrame::to_frame(const Vec3& p) const {
 
 PlaneFrame plane_frame(const Mesh& mesh, const Plane& plane) {
   PlaneFrame f;
-  // As reports/render.cpp: medio-lateral = the plane normal, superior = LPS +z
-  // made orthogonal to it, anterior completes a right-handed frame.
+  // Medio-lateral = the plane normal, superior = LPS +z made orthogonal to it,
+  // anterior completes a right-handed frame (the static views use it too).
   f.x = normalized(plane.normal);
   Vec3 up{0, 0, 1};
   if (std::abs(dot(up, f.x)) > 0.9) up = {0, 1, 0};
@@ -219,8 +213,8 @@ std::string viewer_section_html(const ViewerMesh& vm, const PlaneFrame& frame, c
     << "(front view: the patient's left on your right). "
     << faces << " triangles";
   if (vm.source_faces > faces) h << " (decimated from " << vm.source_faces << ")";
-  h << "; colour scales as the static views: mirror distance " << num(options.mirror_lo, 1) << "&hellip;+"
-    << num(options.mirror_hi, 1) << " mm, SAF map " << num(options.saf_lo, 2) << "&hellip;" << num(options.saf_hi, 2)
+  h << "; colour scales as the static views: mirror distance " << fixed(options.mirror_lo, 1) << "&hellip;+"
+    << fixed(options.mirror_hi, 1) << " mm, SAF map " << fixed(options.saf_lo, 2) << "&hellip;" << fixed(options.saf_hi, 2)
     << " rad.</p>\n</div>\n";
   h << "<script type=\"application/json\" id=\"ms-viewer-data\">" << script_safe(d.dump(-1)) << "</script>\n";
   h << "<script>\n" << kViewerScript << "\n</script>\n";

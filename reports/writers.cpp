@@ -18,14 +18,14 @@ json::Value vec(const Vec3& v) { return json::Value::array_of(v); }
 
 json::Value num_or_null(double v, bool valid = true) { return valid && std::isfinite(v) ? json::Value(v) : json::Value(); }
 
-std::string fmt(double v, int prec = 2) {
+}  // namespace
+
+std::string fixed(double v, int prec) {
   if (!std::isfinite(v)) return "n/a";
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", prec, v);
   return b;
 }
-
-}  // namespace
 
 std::string base64_encode(const std::string& in) {
   static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -335,12 +335,12 @@ std::string csv_row(const RunSummary& s, const std::string& status) {
   const auto q = csv_quote;
   auto b = [&](const char* n) {
     auto it = s.bilateral.find(n);
-    return it == s.bilateral.end() ? std::string() : fmt(it->second.diff, 3);
+    return it == s.bilateral.end() ? std::string() : fixed(it->second.diff, 3);
   };
   std::ostringstream o;
-  o << q(s.scan.path) << ',' << status << ',' << (s.saf.score >= 0 ? fmt(s.saf.score, 5) : "") << ','
-    << (s.saf.correspondence_free >= 0 ? fmt(s.saf.correspondence_free, 5) : "") << ',' << fmt(s.mirror.overall.mean_abs, 3)
-    << ',' << fmt(s.mirror.overall.rms, 3) << ',' << fmt(s.mirror.overall.p95, 3) << ',' << fmt(s.mirror.overall.max, 3)
+  o << q(s.scan.path) << ',' << status << ',' << (s.saf.score >= 0 ? fixed(s.saf.score, 5) : "") << ','
+    << (s.saf.correspondence_free >= 0 ? fixed(s.saf.correspondence_free, 5) : "") << ',' << fixed(s.mirror.overall.mean_abs, 3)
+    << ',' << fixed(s.mirror.overall.rms, 3) << ',' << fixed(s.mirror.overall.p95, 3) << ',' << fixed(s.mirror.overall.max, 3)
     << ',' << b("ramus_height_mm") << ',' << b("body_length_mm") << ',' << b("gonial_angle_deg") << ','
     << (s.truncated ? "true" : "false") << ',' << s.warnings.size() << '\n';
   return o.str();
@@ -444,8 +444,8 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
       << "&rdquo; &middot; scanner " << E(s.scan.manufacturer.empty() ? "-" : s.scan.manufacturer) << ' '
       << E(s.scan.model) << " &middot; kernel " << E(s.scan.kernel.empty() ? "-" : s.scan.kernel) << "</p>\n";
   h << "<p class=\"muted\">Grid " << s.grid.size[0] << " &times; " << s.grid.size[1] << " &times; " << s.grid.size[2]
-    << " voxels, spacing " << fmt(s.grid.spacing[0]) << " &times; " << fmt(s.grid.spacing[1]) << " &times; "
-    << fmt(s.grid.spacing[2]) << " mm. Pixel data SHA-256 <code>" << E(s.scan.pixel_sha256.substr(0, 16))
+    << " voxels, spacing " << fixed(s.grid.spacing[0]) << " &times; " << fixed(s.grid.spacing[1]) << " &times; "
+    << fixed(s.grid.spacing[2]) << " mm. Pixel data SHA-256 <code>" << E(s.scan.pixel_sha256.substr(0, 16))
     << "&hellip;</code></p>\n";
   for (const auto& w : s.warnings) h << "<div class=\"warn\">&#9888; " << E(w) << "</div>\n";
 
@@ -494,9 +494,9 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
       h << "<td colspan=6>missing</td></tr>\n";
       continue;
     }
-    h << "<td>" << fmt((*p)[0]) << "</td><td>" << fmt((*p)[1]) << "</td><td>" << fmt((*p)[2]) << "</td>";
+    h << "<td>" << fixed((*p)[0]) << "</td><td>" << fixed((*p)[1]) << "</td><td>" << fixed((*p)[2]) << "</td>";
     auto it = s.reference.asymmetry_vectors.find(n);
-    for (int a = 0; a < 3; ++a) h << "<td>" << (it != s.reference.asymmetry_vectors.end() ? fmt(it->second[a]) : "") << "</td>";
+    for (int a = 0; a < 3; ++a) h << "<td>" << (it != s.reference.asymmetry_vectors.end() ? fixed(it->second[a]) : "") << "</td>";
     h << "</tr>\n";
   }
   h << "</table>\n<p class=\"muted\">Last three columns: detected minus symmetric reference configuration, in the "
@@ -505,24 +505,24 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   h << "<h2>Bilateral measures</h2>\n<table><tr><th>measure</th><th>left</th><th>right</th><th>L&minus;R</th>"
        "<th>L/R</th></tr>\n";
   for (const auto& [n, b] : s.bilateral)
-    h << "<tr><td>" << E(n) << "</td><td>" << fmt(b.L) << "</td><td>" << fmt(b.R) << "</td><td>" << fmt(b.diff)
-      << "</td><td>" << fmt(b.ratio, 3) << "</td></tr>\n";
+    h << "<tr><td>" << E(n) << "</td><td>" << fixed(b.L) << "</td><td>" << fixed(b.R) << "</td><td>" << fixed(b.diff)
+      << "</td><td>" << fixed(b.ratio, 3) << "</td></tr>\n";
   h << "</table>\n";
 
   h << "<h2>Regional asymmetry</h2>\n<table><tr><th>region</th><th>mirror mean |d| (mm)</th><th>RMS</th><th>p95</th>"
        "<th>max</th><th>SAF map mean (rad)</th></tr>\n";
   for (const auto& [n, st] : s.mirror.regions) {
     auto it = s.saf_regions.find(n);
-    h << "<tr><td>" << E(n) << "</td><td>" << fmt(st.mean_abs) << "</td><td>" << fmt(st.rms) << "</td><td>"
-      << fmt(st.p95) << "</td><td>" << fmt(st.max) << "</td><td>"
-      << (it != s.saf_regions.end() ? fmt(it->second, 3) : "") << "</td></tr>\n";
+    h << "<tr><td>" << E(n) << "</td><td>" << fixed(st.mean_abs) << "</td><td>" << fixed(st.rms) << "</td><td>"
+      << fixed(st.p95) << "</td><td>" << fixed(st.max) << "</td><td>"
+      << (it != s.saf_regions.end() ? fixed(it->second, 3) : "") << "</td></tr>\n";
   }
   h << "</table>\n";
 
   h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
-  for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fmt(v, 4) << "</td></tr>\n";
+  for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fixed(v, 4) << "</td></tr>\n";
   h << "</table>\n<p class=\"muted\">Correspondence-free SAF (secondary): "
-    << (s.saf.correspondence_free >= 0 ? fmt(s.saf.correspondence_free, 4) : "n/a")
+    << (s.saf.correspondence_free >= 0 ? fixed(s.saf.correspondence_free, 4) : "n/a")
     << " rad. The SAF comparison is symmetrised, so its map marks <em>where</em> the two sides differ (a left/right "
        "region pair), not which side is abnormal; the signed mirror distance shows which side bulges.</p>\n";
   if (!s.srd.twins.empty()) {
@@ -530,8 +530,8 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
          "<th>handedness (rad)</th></tr>\n";
     for (const auto& t : s.srd.twins)
       h << "<tr><td>" << E(t.landmark) << "</td><td>" << E(t.twin) << "</td><td>"
-        << (t.mirror_mismatch >= 0 ? fmt(t.mirror_mismatch, 3) : "n/a") << "</td><td>"
-        << (t.handedness >= 0 ? fmt(t.handedness, 3) : "n/a") << "</td></tr>\n";
+        << (t.mirror_mismatch >= 0 ? fixed(t.mirror_mismatch, 3) : "n/a") << "</td><td>"
+        << (t.handedness >= 0 ? fixed(t.handedness, 3) : "n/a") << "</td></tr>\n";
     h << "</table>\n<p class=\"muted\">Signed-angle-field histograms over 5 mm rings around each landmark "
          "(METHOD.md &sect;6). Twin mismatch compares a landmark with its mirror twin after negating the angles "
          "(0 = locally mirror-symmetric; Me and Pog with themselves); handedness is the same comparison without "
@@ -541,16 +541,16 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   }
 
   h << "<h2>Surface and plane</h2>\n<table><tr><th>quantity</th><th>value</th></tr>\n"
-    << "<tr><td>segmentation volume (mm&sup3;)</td><td>" << fmt(s.seg_volume_mm3, 0) << "</td></tr>\n"
+    << "<tr><td>segmentation volume (mm&sup3;)</td><td>" << fixed(s.seg_volume_mm3, 0) << "</td></tr>\n"
     << "<tr><td>mesh vertices / faces</td><td>" << s.mesh.vertices << " / " << s.mesh.faces << "</td></tr>\n"
-    << "<tr><td>mesh area (mm&sup2;) / volume (mm&sup3;)</td><td>" << fmt(s.mesh.area_mm2, 0) << " / "
-    << fmt(s.mesh.volume_mm3, 0) << "</td></tr>\n"
+    << "<tr><td>mesh area (mm&sup2;) / volume (mm&sup3;)</td><td>" << fixed(s.mesh.area_mm2, 0) << " / "
+    << fixed(s.mesh.volume_mm3, 0) << "</td></tr>\n"
     << "<tr><td>closed / genus</td><td>" << (s.mesh.closed ? "yes" : "no") << " / " << s.mesh.genus << "</td></tr>\n"
-    << "<tr><td>plane point (LPS mm)</td><td>" << fmt(s.reference.plane.point[0]) << ", " << fmt(s.reference.plane.point[1])
-    << ", " << fmt(s.reference.plane.point[2]) << "</td></tr>\n"
-    << "<tr><td>plane normal</td><td>" << fmt(s.reference.plane.normal[0], 4) << ", " << fmt(s.reference.plane.normal[1], 4)
-    << ", " << fmt(s.reference.plane.normal[2], 4) << "</td></tr>\n"
-    << "<tr><td>landmark residual RMS (mm)</td><td>" << fmt(s.reference.rms_landmark_residual_mm) << "</td></tr>\n"
+    << "<tr><td>plane point (LPS mm)</td><td>" << fixed(s.reference.plane.point[0]) << ", " << fixed(s.reference.plane.point[1])
+    << ", " << fixed(s.reference.plane.point[2]) << "</td></tr>\n"
+    << "<tr><td>plane normal</td><td>" << fixed(s.reference.plane.normal[0], 4) << ", " << fixed(s.reference.plane.normal[1], 4)
+    << ", " << fixed(s.reference.plane.normal[2], 4) << "</td></tr>\n"
+    << "<tr><td>landmark residual RMS (mm)</td><td>" << fixed(s.reference.rms_landmark_residual_mm) << "</td></tr>\n"
     << "</table>\n";
 
   h << "<h2>Methods</h2>\n<p>The mandible (lower teeth included) is separated from skull, upper teeth and spine by "
@@ -568,8 +568,8 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   h << "<h2>Provenance</h2>\n<table><tr><th>item</th><th>value</th></tr>\n";
   h << "<tr><td>command</td><td>" << E(s.command_line) << "</td></tr>\n";
   for (const auto& [k, v] : s.parameters) h << "<tr><td>" << E(k) << "</td><td>" << E(v) << "</td></tr>\n";
-  for (const auto& [n, t] : s.timings_s) h << "<tr><td>time: " << E(n) << "</td><td>" << fmt(t, 3) << " s</td></tr>\n";
-  h << "<tr><td>time: total</td><td>" << fmt(s.total_s, 3) << " s</td></tr>\n</table>\n</body></html>\n";
+  for (const auto& [n, t] : s.timings_s) h << "<tr><td>time: " << E(n) << "</td><td>" << fixed(t, 3) << " s</td></tr>\n";
+  h << "<tr><td>time: total</td><td>" << fixed(s.total_s, 3) << " s</td></tr>\n</table>\n</body></html>\n";
   return h.str();
 }
 

@@ -33,6 +33,8 @@ std::string png_data_uri(const std::string& path);
 
 // HTML-escapes &, <, >, ", '.
 std::string html_escape(const std::string& s);
+// v with prec decimals ("%.*f"); "n/a" when not finite.
+std::string fixed(double v, int prec = 2);
 
 // Writes text to path via a temporary file and rename (no half-written file).
 void write_text_atomic(const std::string& path, const std::string& text);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "asymmetry/measures.h"
 #include "geometry/mesh_geometry.h"
 
 namespace ms::asymmetry {
@@ -90,12 +91,6 @@ Srd describe(const std::string& name, const Mesh& mesh, const std::vector<double
   return d;
 }
 
-std::vector<double> vertex_area_of(const Mesh& mesh, const std::vector<double>& face_area) {
-  std::vector<double> va(mesh.vertices.size(), 0.0);
-  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
-    for (int k = 0; k < 3; ++k) va[mesh.faces[f][k]] += face_area[f] / 3.0;
-  return va;
-}
 
 // Circular Wasserstein-1 (radians) between two normalised histograms of B bins;
 // y's bins reversed (its angles negated) when reverse.
@@ -119,7 +114,7 @@ Srd compute_srd(const Mesh& mesh, const std::string& name, const Vec3& centre, c
                 const SrdOptions& options) {
   const auto graph = geometry::edge_graph(mesh);
   const auto area = geometry::face_areas(mesh);
-  return describe(name, mesh, distances_from(mesh, graph, centre, options), area, vertex_area_of(mesh, area), fields,
+  return describe(name, mesh, distances_from(mesh, graph, centre, options), area, vertex_areas(mesh), fields,
                   options);
 }
 
@@ -129,7 +124,7 @@ SrdResult compute_srds(const Mesh& mesh, const SafResult& saf, const SrdOptions&
   if (saf.fields.empty()) return out;
   const auto graph = geometry::edge_graph(mesh);
   const auto area = geometry::face_areas(mesh);
-  const auto varea = vertex_area_of(mesh, area);
+  const auto varea = vertex_areas(mesh);
   for (const auto& [name, p] : saf.disk_centres.points) {
     Srd d = describe(name, mesh, distances_from(mesh, graph, p, options), area, varea, saf.fields, options);
     if (!d.blocks.empty()) out.descriptors[name] = std::move(d);

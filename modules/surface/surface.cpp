@@ -95,7 +95,29 @@ MeshStats measure(const Mesh& m) {
   return s;
 }
 
-static Result mesh_once(const Mask& mask, const Options& opt) {
+// Topology and orientation of a result: measure, flip to outward if needed.
+static void measure_outward(Result& r) {
+  r.stats = measure(r.mesh);
+  if (r.stats.volume_mm3 < 0) {  // mirror-handed grid or inward faces: flip to outward
+    for (auto& f : r.mesh.faces) std::swap(f[1], f[2]);
+    r.stats.volume_mm3 = -r.stats.volume_mm3;
+  }
+}
+
+// CGAL repair and isotropic remeshing of a raw surface, then measure again.
+static void finish(Result& r, const Options& opt) {
+  if (opt.target_edge_mm <= 0) return;
+  RepairOptions ro;
+  ro.target_edge_mm = opt.target_edge_mm;
+  ro.remesh_iterations = opt.remesh_iterations;
+  r.repair = repair_and_remesh(r.mesh, ro);
+  if (r.mesh.faces.empty()) throw Error(ExitCode::GeometryFailed, "surface repair left no triangles");
+  measure_outward(r);
+}
+
+// Flying-edges surface (after the optional closing and decimation) in LPS,
+// measured, before CGAL repair.
+static Result raw_mesh(const Mask& mask, const Options& opt) {
   const Geometry& g = mask.geom;
   // Crop to the mask's bounding box plus a margin of empty voxels so the
   // surface closes at the scan border.
@@ -181,51 +203,32 @@ static Result mesh_once(const Mask& mask, const Options& opt) {
     const Vec3 q{v[0] / g.spacing[0] + lo[0] - pad, v[1] / g.spacing[1] + lo[1] - pad, v[2] / g.spacing[2] + lo[2] - pad};
     v = g.index_to_lps(q[0], q[1], q[2]);
   }
-  if (opt.target_edge_mm > 0) {
-    RepairOptions ro;
-    ro.target_edge_mm = opt.target_edge_mm;
-    ro.remesh_iterations = opt.remesh_iterations;
-    r.repair = repair_and_remesh(r.mesh, ro);
-    if (r.mesh.faces.empty()) throw Error(ExitCode::GeometryFailed, "surface repair left no triangles");
-  }
-  r.stats = measure(r.mesh);
-  if (r.stats.volume_mm3 < 0) {  // mirror-handed grid or inward faces: flip to outward
-    for (auto& f : r.mesh.faces) std::swap(f[1], f[2]);
-    r.stats.volume_mm3 = -r.stats.volume_mm3;
-  }
+  measure_outward(r);
   return r;
 }
 
 Result mesh_from_mask(const Mask& mask, const Options& opt) {
-  if (!opt.close_handles_auto || opt.close_handles_mm > 0) {
-    Result r = mesh_once(mask, opt);
-    r.closing_mm = opt.close_handles_mm;
-    return r;
-  }
-  // The topology is decided on the raw flying-edges surface (no CGAL repair
-  // or remeshing, ~10 x cheaper); only the chosen radius is meshed in full.
-  auto raw_genus = [&](double radius) {
-    Options o = opt;
-    o.close_handles_mm = radius;
-    o.target_edge_mm = 0;
-    return mesh_once(mask, o).stats.genus;
-  };
-  const int g0 = raw_genus(0);
-  if (g0 > 0) {
+  Result r = raw_mesh(mask, opt);
+  r.closing_mm = opt.close_handles_mm;
+  // Automatic closing: the topology is decided on raw surfaces (no CGAL
+  // repair, ~10 x cheaper); only the chosen one is repaired and remeshed.
+  if (opt.close_handles_auto && opt.close_handles_mm <= 0 && r.stats.genus > 0) {
     const double finest = std::min({mask.geom.spacing[0], mask.geom.spacing[1], mask.geom.spacing[2]});
     for (double radius : {1.0, 2.0, 3.0}) {
-      if (radius < finest || raw_genus(radius) != 0) continue;  // below a voxel the kernel is a single voxel
+      if (radius < finest) continue;  // the kernel would be a single voxel: no closing
       Options o = opt;
       o.close_handles_mm = radius;
-      Result c = mesh_once(mask, o);
+      Result c = raw_mesh(mask, o);
+      if (c.stats.genus != 0) continue;
+      finish(c, o);
       if (c.stats.genus != 0) continue;  // repair changed the topology: try the next radius
       c.closing_mm = radius;
-      c.genus_before_closing = g0;
+      c.genus_before_closing = r.stats.genus;
       return c;
     }
+    r.genus_before_closing = r.stats.genus;
   }
-  Result r = mesh_once(mask, opt);
-  if (r.stats.genus > 0) r.genus_before_closing = r.stats.genus;
+  finish(r, opt);
   return r;
 }
 
