@@ -88,36 +88,63 @@ Vec3 RigidTransform::apply(const Vec3& x) const {
           R[6] * x[0] + R[7] * x[1] + R[8] * x[2] + t[2]};
 }
 
+RigidTransform kabsch(const std::vector<std::pair<Vec3, Vec3>>& pairs) {
+  RigidTransform T;
+  if (pairs.empty()) return T;
+  Eigen::Vector3d cm = Eigen::Vector3d::Zero(), cf = Eigen::Vector3d::Zero();
+  for (const auto& [a, b] : pairs) cm += Eigen::Vector3d(a[0], a[1], a[2]), cf += Eigen::Vector3d(b[0], b[1], b[2]);
+  cm /= static_cast<double>(pairs.size());
+  cf /= static_cast<double>(pairs.size());
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  for (const auto& [a, b] : pairs) H += (Eigen::Vector3d(a[0], a[1], a[2]) - cm) * (Eigen::Vector3d(b[0], b[1], b[2]) - cf).transpose();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  const Eigen::Matrix3d R = svd.matrixV() * D * svd.matrixU().transpose();
+  const Eigen::Vector3d t = cf - R * cm;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) T.R[static_cast<std::size_t>(3 * r + c)] = R(r, c);
+  T.t = {t[0], t[1], t[2]};
+  return T;
+}
+
+RigidTransform RigidTransform::inverse() const {
+  RigidTransform I;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) I.R[static_cast<std::size_t>(3 * r + c)] = R[static_cast<std::size_t>(3 * c + r)];
+  I.t = -1.0 * I.apply(t);  // -R^T t (I.t is still zero here)
+  return I;
+}
+
 AlignResult align_rigid(const Mesh& moving, const Mesh& fixed, const LandmarkSet& lm_moving, const LandmarkSet& lm_fixed,
                         int rounds, double cauchy_mm) {
-  AlignResult res;
   // Initial guess: Kabsch on common landmarks, else the centroids.
   std::vector<std::pair<Vec3, Vec3>> pairs;
   for (const auto& [name, p] : lm_moving.points)
     if (const Vec3* q = lm_fixed.find(name)) pairs.emplace_back(p, *q);
-  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d t0 = Eigen::Vector3d::Zero();
+  RigidTransform initial;
   if (pairs.size() >= 3) {
-    Eigen::Vector3d cm = Eigen::Vector3d::Zero(), cf = Eigen::Vector3d::Zero();
-    for (const auto& [a, b] : pairs) cm += Eigen::Vector3d(a[0], a[1], a[2]), cf += Eigen::Vector3d(b[0], b[1], b[2]);
-    cm /= static_cast<double>(pairs.size());
-    cf /= static_cast<double>(pairs.size());
-    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-    for (const auto& [a, b] : pairs) H += (Eigen::Vector3d(a[0], a[1], a[2]) - cm) * (Eigen::Vector3d(b[0], b[1], b[2]) - cf).transpose();
-    Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-    D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
-    R0 = svd.matrixV() * D * svd.matrixU().transpose();
-    t0 = cf - R0 * cm;
-    res.landmark_pairs = pairs.size();
+    initial = kabsch(pairs);
   } else {
     Vec3 cm{0, 0, 0}, cf{0, 0, 0};
     for (const auto& v : moving.vertices) cm = cm + v;
     for (const auto& v : fixed.vertices) cf = cf + v;
     cm = (1.0 / static_cast<double>(std::max<std::size_t>(1, moving.vertices.size()))) * cm;
     cf = (1.0 / static_cast<double>(std::max<std::size_t>(1, fixed.vertices.size()))) * cf;
-    t0 = Eigen::Vector3d(cf[0] - cm[0], cf[1] - cm[1], cf[2] - cm[2]);
+    initial.t = cf - cm;
   }
+  AlignResult res = align_rigid_from(moving, fixed, initial, rounds, cauchy_mm);
+  res.landmark_pairs = pairs.size() >= 3 ? pairs.size() : 0;
+  return res;
+}
+
+AlignResult align_rigid_from(const Mesh& moving, const Mesh& fixed, const RigidTransform& initial, int rounds,
+                             double cauchy_mm) {
+  AlignResult res;
+  Eigen::Matrix3d R0;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) R0(r, c) = initial.R[static_cast<std::size_t>(3 * r + c)];
+  const Eigen::Vector3d t0(initial.t[0], initial.t[1], initial.t[2]);
   double aa[3], t[3] = {t0[0], t0[1], t0[2]};
   {
     const double Rm[9] = {R0(0, 0), R0(1, 0), R0(2, 0), R0(0, 1), R0(1, 1), R0(2, 1), R0(0, 2), R0(1, 2), R0(2, 2)};  // column-major

@@ -48,6 +48,7 @@ struct RigidTransform {
   std::array<double, 9> R{1, 0, 0, 0, 1, 0, 0, 0, 1};
   Vec3 t{0, 0, 0};
   Vec3 apply(const Vec3& x) const;
+  RigidTransform inverse() const;
 };
 
 struct AlignResult {
@@ -62,6 +63,14 @@ struct AlignResult {
 // that really changed do not drag the fit.
 AlignResult align_rigid(const Mesh& moving, const Mesh& fixed, const LandmarkSet& lm_moving, const LandmarkSet& lm_fixed,
                         int rounds = 12, double cauchy_mm = 1.0);
+// The same ICP from a given initial transform (moving -> fixed).
+AlignResult align_rigid_from(const Mesh& moving, const Mesh& fixed, const RigidTransform& initial, int rounds = 12,
+                             double cauchy_mm = 1.0);
+
+// Least-squares rigid transform taking each pair's first point onto its
+// second (Kabsch / Umeyama without scale; reflections excluded). Identity for
+// no pairs.
+RigidTransform kabsch(const std::vector<std::pair<Vec3, Vec3>>& pairs);
 
 // Orthonormal frame of a symmetry plane: e_ml = normal, e_si = superior
 // projected into the plane, e_ap = e_si x e_ml (posterior).

@@ -1,0 +1,214 @@
+#include "descriptors/matching.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <sstream>
+
+#include "descriptors/spin_image.h"
+#include "geometry/mesh_geometry.h"
+
+namespace ms::descriptors {
+
+std::vector<Neighbour> nearest(const std::vector<float>& query, const std::vector<float>& base, int len, int k) {
+  const std::size_t L = static_cast<std::size_t>(len), K = static_cast<std::size_t>(k);
+  const long nq = static_cast<long>(query.size() / L);
+  const std::size_t nb = base.size() / L;
+  std::vector<Neighbour> out(static_cast<std::size_t>(nq) * K, Neighbour{-1, std::numeric_limits<float>::infinity()});
+#pragma omp parallel for schedule(dynamic, 32)
+  for (long q = 0; q < nq; ++q) {
+    const float* a = query.data() + static_cast<std::size_t>(q) * L;
+    Neighbour* best = out.data() + static_cast<std::size_t>(q) * K;  // ascending by squared distance
+    for (std::size_t b = 0; b < nb; ++b) {
+      const float* c = base.data() + b * L;
+      float d2 = 0;
+      for (std::size_t i = 0; i < L; ++i) {
+        const float e = a[i] - c[i];
+        d2 += e * e;
+      }
+      if (!(d2 < best[K - 1].distance)) continue;
+      std::size_t pos = K - 1;
+      while (pos > 0 && d2 < best[pos - 1].distance) best[pos] = best[pos - 1], --pos;
+      best[pos] = {static_cast<int>(b), d2};
+    }
+    for (std::size_t j = 0; j < K; ++j) best[j].distance = std::sqrt(best[j].distance);
+  }
+  return out;
+}
+
+namespace {
+
+double refit_rms(const reference::RigidTransform& T, const std::vector<Vec3>& src, const std::vector<Vec3>& dst,
+                 const std::vector<int>& idx) {
+  double ss = 0;
+  for (int i : idx) {
+    const Vec3 e = T.apply(src[static_cast<std::size_t>(i)]) - dst[static_cast<std::size_t>(i)];
+    ss += dot(e, e);
+  }
+  return idx.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(idx.size()));
+}
+
+}  // namespace
+
+RansacResult ransac_rigid(const std::vector<Vec3>& src, const std::vector<Vec3>& dst, double inlier_mm, int iterations,
+                          std::uint64_t seed) {
+  RansacResult best;
+  const std::size_t n = std::min(src.size(), dst.size());
+  if (n < 3) return best;
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<std::size_t> pick(0, n - 1);
+  const double t2 = inlier_mm * inlier_mm;
+  std::vector<int> inl;
+  auto count = [&](const reference::RigidTransform& T) {
+    inl.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 e = T.apply(src[i]) - dst[i];
+      if (dot(e, e) <= t2) inl.push_back(static_cast<int>(i));
+    }
+  };
+  for (int it = 0; it < iterations; ++it) {
+    const std::size_t a = pick(rng), b = pick(rng), c = pick(rng);
+    if (a == b || b == c || a == c) continue;
+    // A minimal sample must be non-degenerate and distance-consistent (rigid).
+    const double ds[3] = {distance(src[a], src[b]), distance(src[b], src[c]), distance(src[a], src[c])};
+    const double dd[3] = {distance(dst[a], dst[b]), distance(dst[b], dst[c]), distance(dst[a], dst[c])};
+    bool ok = norm(cross(src[b] - src[a], src[c] - src[a])) > 4 * t2;
+    for (int k = 0; k < 3 && ok; ++k) ok = std::abs(ds[k] - dd[k]) <= 2 * inlier_mm;
+    if (!ok) continue;
+    const auto T = reference::kabsch({{src[a], dst[a]}, {src[b], dst[b]}, {src[c], dst[c]}});
+    count(T);
+    if (inl.size() > best.inliers.size()) best.transform = T, best.inliers = inl;
+  }
+  // Refit on the inliers (twice: the refit may gather a few more).
+  for (int round = 0; round < 2 && best.inliers.size() >= 3; ++round) {
+    std::vector<std::pair<Vec3, Vec3>> pairs;
+    for (int i : best.inliers) pairs.emplace_back(src[static_cast<std::size_t>(i)], dst[static_cast<std::size_t>(i)]);
+    const auto T = reference::kabsch(pairs);
+    count(T);
+    if (inl.size() < best.inliers.size()) break;
+    best.transform = T, best.inliers = inl;
+  }
+  best.rms_mm = refit_rms(best.transform, src, dst, best.inliers);
+  return best;
+}
+
+namespace {
+
+// The faces of mesh whose three vertices are within radius of c, reindexed.
+Mesh patch(const Mesh& mesh, const Vec3& c, double radius, std::vector<int>* original = nullptr) {
+  Mesh out;
+  std::vector<int> map(mesh.vertices.size(), -1);
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v)
+    if (distance(mesh.vertices[v], c) <= radius) {
+      map[v] = static_cast<int>(out.vertices.size());
+      out.vertices.push_back(mesh.vertices[v]);
+      if (original) original->push_back(static_cast<int>(v));
+    }
+  for (const auto& f : mesh.faces) {
+    const int a = map[static_cast<std::size_t>(f[0])], b = map[static_cast<std::size_t>(f[1])], d = map[static_cast<std::size_t>(f[2])];
+    if (a >= 0 && b >= 0 && d >= 0) out.faces.push_back({a, b, d});
+  }
+  return out;
+}
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(1);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+std::vector<LandmarkTransfer> transfer_landmarks(const Mesh& source, const LandmarkSet& source_landmarks, const Mesh& target,
+                                                 const LandmarkSet& target_landmarks,
+                                                 const reference::RigidTransform& global, const TransferOptions& opt) {
+  std::vector<LandmarkTransfer> out;
+  if (source.faces.empty() || target.faces.empty()) return out;
+  // One descriptor set per mesh, same absolute parameters on both (the support
+  // radius follows the coarser of the two resolutions).
+  const double res = std::max(mesh_resolution(source), mesh_resolution(target));
+  Options dopt;
+  dopt.support_radius_mm = 10 * res;
+  const SpinImages src_isi(source, dopt), tgt_isi(target, dopt);
+  const double inlier_mm = opt.inlier_mm > 0 ? opt.inlier_mm : 3 * res;
+  const geometry::ClosestPointIndex target_index(target);
+  const int len = src_isi.length();
+  std::mt19937_64 rng(opt.seed);
+
+  for (const auto& [name, L] : source_landmarks.points) {
+    LandmarkTransfer t;
+    t.name = name;
+    if (const Vec3* d = target_landmarks.find(name)) t.detected = true, t.detected_point = *d;
+    // Source keypoints: a random sample of the patch around the landmark.
+    std::vector<int> src_pts;
+    for (std::size_t v = 0; v < source.vertices.size(); ++v)
+      if (distance(source.vertices[v], L) <= opt.patch_radius_mm) src_pts.push_back(static_cast<int>(v));
+    std::shuffle(src_pts.begin(), src_pts.end(), rng);
+    if (src_pts.size() > static_cast<std::size_t>(opt.patch_features)) src_pts.resize(static_cast<std::size_t>(opt.patch_features));
+    // Target candidates: every vertex near where the global alignment puts the landmark.
+    const Vec3 guess = global.apply(L);
+    std::vector<int> tgt_pts;
+    const double reach = opt.search_radius_mm + opt.patch_radius_mm;
+    for (std::size_t v = 0; v < target.vertices.size(); ++v)
+      if (distance(target.vertices[v], guess) <= reach) tgt_pts.push_back(static_cast<int>(v));
+    if (src_pts.size() < 3 || tgt_pts.size() < 3) {
+      t.reason = "too little surface around the landmark to register";
+      out.push_back(t);
+      continue;
+    }
+    // Subsample dense targets to a fixed budget (keeps matching cost bounded).
+    const std::size_t budget = static_cast<std::size_t>(opt.patch_features) * 12;
+    if (tgt_pts.size() > budget) {
+      std::shuffle(tgt_pts.begin(), tgt_pts.end(), rng);
+      tgt_pts.resize(budget);
+    }
+    const auto ds = src_isi.compute(Kind::kImprovedSpinImage, src_pts);
+    const auto dt = tgt_isi.compute(Kind::kImprovedSpinImage, tgt_pts);
+    const auto nn = nearest(ds, dt, len, 2);
+    std::vector<Vec3> a, b;
+    for (std::size_t q = 0; q < src_pts.size(); ++q)
+      for (int j = 0; j < 2; ++j) {
+        const auto& m = nn[q * 2 + static_cast<std::size_t>(j)];
+        if (m.index < 0) continue;
+        a.push_back(source.vertices[static_cast<std::size_t>(src_pts[q])]);
+        b.push_back(target.vertices[static_cast<std::size_t>(tgt_pts[static_cast<std::size_t>(m.index)])]);
+      }
+    const auto rs = ransac_rigid(a, b, inlier_mm, opt.ransac_iterations, opt.seed + out.size());
+    t.inliers = static_cast<int>(rs.inliers.size());
+    if (rs.inliers.size() < 6) {
+      t.reason = "no consistent descriptor matches (" + std::to_string(rs.inliers.size()) + " inliers)";
+      out.push_back(t);
+      continue;
+    }
+    // Refine the patch on the target surface.
+    const Mesh p = patch(source, L, opt.patch_radius_mm);
+    const auto icp = reference::align_rigid_from(p, target, rs.transform, 20, 0.5);
+    std::size_t close = 0;
+    for (const auto& v : p.vertices)
+      if (target_index.closest(icp.transform.apply(v)).distance <= 1.0) ++close;
+    t.overlap = p.vertices.empty() ? 0.0 : static_cast<double>(close) / static_cast<double>(p.vertices.size());
+    t.rms_mm = icp.rms_mm;
+    t.transferred = target_index.closest(icp.transform.apply(L)).point;
+    t.registered = t.overlap >= opt.min_overlap;
+    if (t.detected) t.disagreement_mm = distance(t.detected_point, t.transferred);
+    if (!t.registered) {
+      t.reason = "neighbourhood changed: only " + fmt(100 * t.overlap) + " % of it fits the other scan";
+    } else if (!t.detected) {
+      t.used = true;
+      t.reason = "not detected on this scan";
+    } else if (t.disagreement_mm > opt.agree_mm) {
+      t.used = true;
+      t.reason = "detection " + fmt(t.disagreement_mm) + " mm from the registered neighbourhood";
+    } else {
+      t.reason = "detection agrees (" + fmt(t.disagreement_mm) + " mm)";
+    }
+    out.push_back(t);
+  }
+  return out;
+}
+
+}  // namespace ms::descriptors
