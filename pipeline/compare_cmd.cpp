@@ -12,6 +12,7 @@
 #include "asymmetry/srd.h"
 #include "core/error.h"
 #include "core/json.h"
+#include "descriptors/matching.h"
 #include "geometry/mesh_geometry.h"
 #include "pipeline/commands.h"
 #include "reference/reference.h"
@@ -31,9 +32,14 @@ const cli::CommandSpec& compare_spec() {
       "accepts; inputs are run first into DIR/pre and DIR/post. POST's surface is aligned rigidly to PRE's (Kabsch "
       "on common landmarks, then point-to-plane ICP with a Cauchy loss, so that what surgery changed does not drag "
       "the fit). Writes compare.json, compare.html (self-contained), post_aligned.vtp with the per-vertex "
-      "`change_mm` (signed distance of aligned POST to PRE, + where POST lies outside PRE) and qc/ figures.",
+      "`change_mm` (signed distance of aligned POST to PRE, + where POST lies outside PRE) and qc/ figures. "
+      "Landmarks POST's detector missed or misplaced are transferred from PRE (--transfer-landmarks; compare.json "
+      "`landmark_transfer`), and POST's bilateral measurements are recomputed with them.",
       {{"PRE", "the earlier scan or run folder"}, {"POST", "the later scan or run folder"}},
       {{"output", "DIR", "output folder (created)", ""},
+       {"transfer-landmarks", "WHEN", "move PRE's landmarks onto POST by local ISI matching + RANSAC + ICP: auto = where "
+        "POST's detection is missing or disagrees with the registered neighbourhood (plates, osteotomies); always = "
+        "wherever the neighbourhood registers; off = never", "auto"},
        {"quiet", "", "print nothing but errors", ""},
        {"help", "", "show this help", ""}}};
   return s;
@@ -133,6 +139,9 @@ int compare_command(const cli::Args& args) {
   if (out_s.empty()) throw Error(ExitCode::Usage, "compare: -o DIR is required");
   if (args.positional.size() != 2) throw Error(ExitCode::Usage, "compare: needs PRE and POST");
   const bool quiet = args.has("quiet");
+  const std::string transfer_mode = args.get("transfer-landmarks", "auto");
+  if (transfer_mode != "auto" && transfer_mode != "always" && transfer_mode != "off")
+    throw Error(ExitCode::Usage, "compare: --transfer-landmarks must be auto, always or off");
   const fs::path out = out_s;
   std::error_code ec;
   fs::create_directories(out / "qc", ec);
@@ -145,8 +154,24 @@ int compare_command(const cli::Args& args) {
   const auto al = reference::align_rigid(post.mesh, pre.mesh, post.landmarks, pre.landmarks);
   Mesh aligned = post.mesh;
   for (auto& v : aligned.vertices) v = al.transform.apply(v);
+
+  // Landmark transfer PRE -> POST where POST's detection is uncertain.
+  std::vector<descriptors::LandmarkTransfer> transfers;
+  if (transfer_mode != "off")
+    transfers = descriptors::transfer_landmarks(pre.mesh, pre.landmarks, post.mesh, post.landmarks, al.transform.inverse());
+  LandmarkSet post_lm = post.landmarks;  // detected, with the transferred ones in their place
+  std::vector<std::string> transferred_names;
+  for (auto& t : transfers) {
+    if (transfer_mode == "always" && t.registered && !t.used) {
+      t.used = true;
+      t.reason = "--transfer-landmarks always (" + t.reason + ")";
+    }
+    if (!t.used) continue;
+    post_lm.set(t.name, t.transferred);
+    transferred_names.push_back(t.name);
+  }
   LandmarkSet aligned_lm;
-  for (const auto& [name, p] : post.landmarks.points) aligned_lm.set(name, al.transform.apply(p));
+  for (const auto& [name, p] : post_lm.points) aligned_lm.set(name, al.transform.apply(p));
   const geometry::ClosestPointIndex pre_index(pre.mesh);
   const auto pre_normals = geometry::face_normals(pre.mesh);
   std::vector<double> change(aligned.vertices.size());
@@ -231,6 +256,60 @@ int compare_command(const cli::Args& args) {
   }
   cj["srd"] = srdj;
 
+  // Transfers, and POST's bilateral measurements on the landmarks used.
+  json::Value tj = json::Value::object();
+  std::ostringstream transfer_table;
+  if (!transfers.empty()) {
+    transfer_table << "<table><tr><th>landmark</th><th>detected on post</th><th>registered</th><th>overlap</th>"
+                      "<th>detected &harr; transferred (mm)</th><th>used</th><th>why</th></tr>\n";
+    for (const auto& t : transfers) {
+      json::Value e = json::Value::object();
+      e["detected"] = t.detected;
+      e["registered"] = t.registered;
+      e["used"] = t.used;
+      e["overlap"] = t.overlap;
+      e["patch_rms_mm"] = t.rms_mm;
+      e["inliers"] = static_cast<double>(t.inliers);
+      e["disagreement_mm"] = t.disagreement_mm >= 0 ? json::Value(t.disagreement_mm) : json::Value();
+      json::Value pt = json::Value::array();
+      for (double x : t.transferred) pt.push_back(json::Value(x));
+      e["transferred"] = t.registered ? pt : json::Value();
+      e["reason"] = t.reason;
+      tj[t.name] = e;
+      transfer_table << "<tr><td>" << reports::html_escape(t.name) << "</td><td>" << (t.detected ? "yes" : "no")
+                     << "</td><td>" << (t.registered ? "yes" : "no") << "</td><td>" << fixed(100 * t.overlap, 0)
+                     << " %</td><td>" << (t.disagreement_mm >= 0 ? fixed(t.disagreement_mm, 1) : "&ndash;") << "</td><td>"
+                     << (t.used ? "<b>transferred</b>" : "detected") << "</td><td>" << reports::html_escape(t.reason)
+                     << "</td></tr>\n";
+    }
+    transfer_table << "</table>\n";
+  }
+  cj["landmark_transfer"] = tj;
+  cj["landmarks_transferred"] = json::Value::array();
+  for (const auto& n : transferred_names) cj["landmarks_transferred"].push_back(json::Value(n));
+  std::ostringstream bil_table;
+  if (!transferred_names.empty()) {
+    // Each run measured itself on its own detections; with landmarks replaced,
+    // POST's bilateral numbers are measured again on the landmarks used.
+    const auto pre_b = asymmetry::bilateral_measures(pre.landmarks, pre.plane);
+    const auto post_b = asymmetry::bilateral_measures(post_lm, post.plane);
+    json::Value bj = json::Value::object();
+    bil_table << "<table><tr><th>L&minus;R</th><th>pre</th><th>post (with transferred landmarks)</th><th>change</th></tr>\n";
+    for (const auto& [m, b] : post_b) {
+      const auto it = pre_b.find(m);
+      json::Value e = json::Value::object();
+      e["pre"] = it != pre_b.end() ? json::Value(it->second.diff) : json::Value();
+      e["post"] = b.diff;
+      e["change"] = it != pre_b.end() ? json::Value(b.diff - it->second.diff) : json::Value();
+      bj[m] = e;
+      bil_table << "<tr><td>" << reports::html_escape(m) << "</td><td>" << (it != pre_b.end() ? fixed(it->second.diff) : "n/a")
+                << "</td><td>" << fixed(b.diff) << "</td><td>" << (it != pre_b.end() ? fixed(b.diff - it->second.diff) : "n/a")
+                << "</td></tr>\n";
+    }
+    bil_table << "</table>\n";
+    cj["bilateral_with_transferred_landmarks"] = bj;
+  }
+
   // Figures: the change map on the aligned POST surface, PRE's plane.
   const auto rv = reports::render_views(aligned, change, reports::ColourMap{"change post - pre (mm)", -5.0, 5.0, true},
                                         aligned_lm, pre.plane, (out / "qc" / "view_change").string());
@@ -257,6 +336,19 @@ int compare_command(const cli::Args& args) {
     << fixed(p95) << " mm, largest outward " << fixed(max_out) << " mm, inward " << fixed(max_in) << " mm. Alignment: "
     << al.landmark_pairs << " common landmarks, then ICP; rotation " << fixed(angle) << "&deg;, translation "
     << fixed(norm(al.transform.t)) << " mm, residual (closest half) " << fixed(al.rms_mm) << " mm.</p>\n";
+  if (!transfer_table.str().empty()) {
+    h << "<h2>Landmarks on post</h2>\n<p class=\"muted\">Each landmark's 25 mm neighbourhood on pre registered to post "
+         "(Improved Spin Image matching, RANSAC, ICP; docs/descriptors.md). A landmark is transferred when post's own "
+         "detection is missing or lies more than 3 mm from where its registered neighbourhood puts it (a plate, an "
+         "osteotomy);";
+    h << (transferred_names.empty() ? " none was." : " transferred here: ");
+    for (std::size_t i = 0; i < transferred_names.size(); ++i) h << (i ? ", " : "") << reports::html_escape(transferred_names[i]);
+    h << "</p>\n" << transfer_table.str();
+    if (!transferred_names.empty())
+      h << "<p>Bilateral differences with post measured on the landmarks used:</p>\n" << bil_table.str()
+        << "<p class=\"muted\">The score table above keeps each run's own numbers (post's from its detected "
+           "landmarks).</p>\n";
+  }
   if (!srd_table.str().empty())
     h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<p class=\"muted\">Signed-angle-field histograms around each landmark "
          "(docs/method.md, SRD): the change between the scans, and each scan's mismatch with the landmark's mirror twin "

@@ -1,5 +1,7 @@
 #include "descriptors/matching.h"
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -13,27 +15,31 @@
 namespace ms::descriptors {
 
 std::vector<Neighbour> nearest(const std::vector<float>& query, const std::vector<float>& base, int len, int k) {
-  const std::size_t L = static_cast<std::size_t>(len), K = static_cast<std::size_t>(k);
-  const long nq = static_cast<long>(query.size() / L);
-  const std::size_t nb = base.size() / L;
+  // |a - b|^2 = |a|^2 + |b|^2 - 2 a.b, the products by blocks of one matrix
+  // product (Eigen GEMM) instead of a scalar loop per pair.
+  using Rows = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const Eigen::Index L = len, nq = static_cast<Eigen::Index>(query.size()) / L, nb = static_cast<Eigen::Index>(base.size()) / L;
+  const std::size_t K = static_cast<std::size_t>(k);
   std::vector<Neighbour> out(static_cast<std::size_t>(nq) * K, Neighbour{-1, std::numeric_limits<float>::infinity()});
-#pragma omp parallel for schedule(dynamic, 32)
-  for (long q = 0; q < nq; ++q) {
-    const float* a = query.data() + static_cast<std::size_t>(q) * L;
-    Neighbour* best = out.data() + static_cast<std::size_t>(q) * K;  // ascending by squared distance
-    for (std::size_t b = 0; b < nb; ++b) {
-      const float* c = base.data() + b * L;
-      float d2 = 0;
-      for (std::size_t i = 0; i < L; ++i) {
-        const float e = a[i] - c[i];
-        d2 += e * e;
+  if (nq == 0 || nb == 0) return out;
+  const Eigen::Map<const Rows> Q(query.data(), nq, L), B(base.data(), nb, L);
+  const Eigen::VectorXf qn = Q.rowwise().squaredNorm(), bn = B.rowwise().squaredNorm();
+  const Eigen::Index block = 256;
+  for (Eigen::Index q0 = 0; q0 < nq; q0 += block) {
+    const Eigen::Index m = std::min(block, nq - q0);
+    const Rows G = Q.middleRows(q0, m) * B.transpose();
+#pragma omp parallel for schedule(static)
+    for (Eigen::Index i = 0; i < m; ++i) {
+      Neighbour* best = out.data() + static_cast<std::size_t>(q0 + i) * K;  // ascending by squared distance
+      for (Eigen::Index j = 0; j < nb; ++j) {
+        const float d2 = std::max(0.0f, qn[q0 + i] + bn[j] - 2 * G(i, j));
+        if (!(d2 < best[K - 1].distance)) continue;
+        std::size_t pos = K - 1;
+        while (pos > 0 && d2 < best[pos - 1].distance) best[pos] = best[pos - 1], --pos;
+        best[pos] = {static_cast<int>(j), d2};
       }
-      if (!(d2 < best[K - 1].distance)) continue;
-      std::size_t pos = K - 1;
-      while (pos > 0 && d2 < best[pos - 1].distance) best[pos] = best[pos - 1], --pos;
-      best[pos] = {static_cast<int>(b), d2};
+      for (std::size_t j = 0; j < K; ++j) best[j].distance = std::sqrt(best[j].distance);
     }
-    for (std::size_t j = 0; j < K; ++j) best[j].distance = std::sqrt(best[j].distance);
   }
   return out;
 }
@@ -138,6 +144,13 @@ std::vector<LandmarkTransfer> transfer_landmarks(const Mesh& source, const Landm
   const geometry::ClosestPointIndex target_index(target);
   const int len = src_isi.length();
   std::mt19937_64 rng(opt.seed);
+  // Target keypoints: one random sample of the whole surface, described once
+  // and shared by all landmarks.
+  std::vector<int> tgt_sample(target.vertices.size());
+  std::iota(tgt_sample.begin(), tgt_sample.end(), 0);
+  std::shuffle(tgt_sample.begin(), tgt_sample.end(), rng);
+  if (tgt_sample.size() > static_cast<std::size_t>(opt.target_features)) tgt_sample.resize(static_cast<std::size_t>(opt.target_features));
+  const auto tgt_desc = tgt_isi.compute(Kind::kImprovedSpinImage, tgt_sample);
 
   for (const auto& [name, L] : source_landmarks.points) {
     LandmarkTransfer t;
@@ -149,25 +162,24 @@ std::vector<LandmarkTransfer> transfer_landmarks(const Mesh& source, const Landm
       if (distance(source.vertices[v], L) <= opt.patch_radius_mm) src_pts.push_back(static_cast<int>(v));
     std::shuffle(src_pts.begin(), src_pts.end(), rng);
     if (src_pts.size() > static_cast<std::size_t>(opt.patch_features)) src_pts.resize(static_cast<std::size_t>(opt.patch_features));
-    // Target candidates: every vertex near where the global alignment puts the landmark.
+    // Target candidates: the sampled vertices near where the global
+    // alignment puts the landmark.
     const Vec3 guess = global.apply(L);
-    std::vector<int> tgt_pts;
     const double reach = opt.search_radius_mm + opt.patch_radius_mm;
-    for (std::size_t v = 0; v < target.vertices.size(); ++v)
-      if (distance(target.vertices[v], guess) <= reach) tgt_pts.push_back(static_cast<int>(v));
+    std::vector<int> tgt_pts;  // indices into tgt_sample
+    std::vector<float> dt;
+    for (std::size_t k = 0; k < tgt_sample.size(); ++k)
+      if (distance(target.vertices[static_cast<std::size_t>(tgt_sample[k])], guess) <= reach) {
+        tgt_pts.push_back(tgt_sample[k]);
+        dt.insert(dt.end(), tgt_desc.begin() + static_cast<std::ptrdiff_t>(k * static_cast<std::size_t>(len)),
+                  tgt_desc.begin() + static_cast<std::ptrdiff_t>((k + 1) * static_cast<std::size_t>(len)));
+      }
     if (src_pts.size() < 3 || tgt_pts.size() < 3) {
       t.reason = "too little surface around the landmark to register";
       out.push_back(t);
       continue;
     }
-    // Subsample dense targets to a fixed budget (keeps matching cost bounded).
-    const std::size_t budget = static_cast<std::size_t>(opt.patch_features) * 12;
-    if (tgt_pts.size() > budget) {
-      std::shuffle(tgt_pts.begin(), tgt_pts.end(), rng);
-      tgt_pts.resize(budget);
-    }
     const auto ds = src_isi.compute(Kind::kImprovedSpinImage, src_pts);
-    const auto dt = tgt_isi.compute(Kind::kImprovedSpinImage, tgt_pts);
     const auto nn = nearest(ds, dt, len, 2);
     std::vector<Vec3> a, b;
     for (std::size_t q = 0; q < src_pts.size(); ++q)

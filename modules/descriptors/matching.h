@@ -35,6 +35,7 @@ RansacResult ransac_rigid(const std::vector<Vec3>& src, const std::vector<Vec3>&
 struct TransferOptions {
   double patch_radius_mm = 25;   // the neighbourhood of a landmark that is registered
   int patch_features = 300;      // ISI keypoints sampled in that patch
+  int target_features = 8000;    // ISI keypoints sampled once on the whole target
   double search_radius_mm = 40;  // candidates on the target: within this of the globally aligned landmark
   double inlier_mm = 0;          // RANSAC inlier distance; 0 = 3 x the coarser mesh resolution
   int ransac_iterations = 3000;

@@ -352,12 +352,50 @@ TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
   const Value& srd = c.at("srd");
   ASSERT_TRUE(srd.contains("Co_L") && srd.contains("Pog"));
   EXPECT_GT(srd.at("Co_L").at("pre_post_distance_rad").as_number(), srd.at("Pog").at("pre_post_distance_rad").as_number());
+  // Every landmark's neighbourhood registers and agrees with post's own
+  // detection: nothing is transferred on these clean scans.
+  const Value& tr = c.at("landmark_transfer");
+  EXPECT_EQ(tr.size(), 8u);
+  for (const auto& [name, t] : tr.items()) {
+    EXPECT_TRUE(t.at("registered").as_bool()) << name;
+    EXPECT_FALSE(t.at("used").as_bool()) << name << ": " << t.at("reason").as_string();
+    EXPECT_LT(t.at("disagreement_mm").as_number(), 3.0) << name;
+  }
+  EXPECT_EQ(c.at("landmarks_transferred").size(), 0u);
   // The same scan twice: no change.
   ASSERT_EQ(run("compare " + pre.string() + " " + pre.string() + " -o " + same.string() + " -q", &err), 0) << err;
   const Value s = load(same / "compare.json");
   EXPECT_LT(s.at("change").at("p95_mm").as_number(), 0.05);
   EXPECT_NEAR(s.at("scores").at("SAF score (rad)").at("change").as_number(), 0.0, 1e-12);
   EXPECT_NEAR(s.at("srd").at("Co_L").at("pre_post_distance_rad").as_number(), 0.0, 1e-5);  // srd.json rounds to 1e-6
+  // A post run whose detector misplaced Go_L by 7 mm and missed Me (as a
+  // plate or an osteotomy gap can make it): both come back from pre, and
+  // post's bilateral measurements are taken again with them.
+  const fs::path bad = temp_dir("cmp_bad"), fixed = temp_dir("cmp_fixed");
+  fs::create_directories(bad);
+  for (const char* f : {"results.json", "mandible.vtp", "srd.json"}) fs::copy_file(pre / f, bad / f);
+  {
+    Value r = load(pre / "results.json");
+    Value& lm = r["landmarks"];
+    const double z = lm.at("Go_L")[2].as_number();
+    lm["Go_L"][2] = Value(z - 7);
+    lm["Me"] = Value();
+    std::ofstream(bad / "results.json") << r.dump(2);
+  }
+  ASSERT_EQ(run("compare " + pre.string() + " " + bad.string() + " -o " + fixed.string() + " -q", &err), 0) << err;
+  const Value fx = load(fixed / "compare.json");
+  ASSERT_EQ(fx.at("landmarks_transferred").size(), 2u);
+  EXPECT_EQ(fx.at("landmarks_transferred")[0].as_string(), "Go_L");
+  EXPECT_EQ(fx.at("landmarks_transferred")[1].as_string(), "Me");
+  EXPECT_NEAR(fx.at("landmark_transfer").at("Go_L").at("disagreement_mm").as_number(), 7.0, 1.0);
+  // Same bone: with the transferred landmarks post measures what pre did.
+  EXPECT_NEAR(fx.at("bilateral_with_transferred_landmarks").at("gonion_to_plane_mm").at("change").as_number(), 0.0, 0.5);
+  EXPECT_NE(slurp_file(fixed / "compare.html").find("transferred here: Go_L, Me"), std::string::npos);
+  ASSERT_EQ(run("compare " + pre.string() + " " + bad.string() + " -o " + fixed.string() + " -q --transfer-landmarks off", &err), 0);
+  EXPECT_EQ(load(fixed / "compare.json").at("landmarks_transferred").size(), 0u);
+  EXPECT_EQ(run("compare " + pre.string() + " " + bad.string() + " -o " + fixed.string() + " --transfer-landmarks sometimes"), 2);
+  fs::remove_all(bad);
+  fs::remove_all(fixed);
   // Usage errors.
   EXPECT_EQ(run("compare " + pre.string() + " -o " + same.string()), 2);
   EXPECT_EQ(run("compare " + pre.string() + " /nonexistent/post -o " + same.string()), 3);
