@@ -22,6 +22,7 @@
 #include "reference/reference.h"
 #include "reports/figures.h"
 #include "reports/writers.h"
+#include "segmentation/cranium.h"
 #include "segmentation/segmentation.h"
 #include "surface/surface.h"
 
@@ -54,6 +55,7 @@ const cli::CommandSpec& run_spec() {
        {"saf-anchors", "WHICH", "where the Dirichlet disks sit: reference (the symmetric reference configuration) or "
                                 "detected (the detected landmarks)", "reference"},
        {"no-figures", "", "do not write QC figures", ""},
+       {"no-cranial", "", "do not fit the cranial mid-sagittal plane (bone above the condyles)", ""},
        {"deidentify", "", "leave out of every output the DICOM strings that can identify a study: UIDs, dates, "
                           "descriptions, the input path", ""},
        {"quiet", "", "print nothing but errors", ""},
@@ -202,6 +204,37 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     // 5. symmetry plane + reference configuration
     S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh);
     for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
+    if (!args.has("no-cranial")) {
+      // Cranial mid-sagittal plane: bone above the condyles, mandible excluded.
+      segmentation::CraniumOptions co;
+      co.threshold_hu = seg.threshold_hu > 0 ? seg.threshold_hu : so.bone_threshold_hu;
+      Vec3 e_ml, e_ap, e_si;
+      reference::plane_frame(S.reference.plane, e_ml, e_ap, e_si);
+      co.floor.normal = e_si;
+      const Vec3 *cl = S.landmarks.landmarks.find("Co_L"), *cr = S.landmarks.landmarks.find("Co_R");
+      if (cl && cr) {
+        co.floor.point = 0.5 * (*cl + *cr);
+      } else {  // no condyles: the top of the mandible
+        co.floor.point = surf.mesh.vertices.front();
+        for (const auto& v : surf.mesh.vertices)
+          if (dot(v, e_si) > dot(co.floor.point, e_si)) co.floor.point = v;
+      }
+      try {  // optional: a failure here costs the cranial plane, not the run
+        const auto cranium = segmentation::cranium_mask(scan.volume, seg.mask, co);
+        Mesh cranium_mesh;
+        if (cranium.volume_cm3 >= 50) {
+          surface::Options cmo;
+          cmo.target_edge_mm = 0;  // no remeshing: only the mirror-ICP reads it
+          cmo.target_faces = 30000;
+          cranium_mesh = surface::mesh_from_mask(cranium.mask, cmo).mesh;
+        }
+        S.cranial = reference::cranial_plane(cranium_mesh, cranium.volume_cm3, S.reference.plane, S.landmarks.landmarks);
+      } catch (const std::exception& e) {
+        S.cranial = {};
+        S.cranial.reason = e.what();
+      }
+      if (!S.cranial.found) S.warnings.push_back("cranial plane: not fitted: " + S.cranial.reason);
+    }
     stage("reference", 5);
 
     // 6. asymmetry
@@ -258,6 +291,8 @@ int run_command(const cli::Args& args, const std::string& command_line) {
                                reports::landmarks_markup(S.landmarks.landmarks));
     reports::write_text_atomic((stage_dir / "symmetry_plane.mrk.json").string(),
                                reports::plane_markup(S.reference.plane, 120.0));
+    if (S.cranial.found)
+      reports::write_text_atomic((stage_dir / "cranial_plane.mrk.json").string(), reports::plane_markup(S.cranial.plane, 160.0, "cranial mid-sagittal plane"));
     std::vector<std::string> figures;
     std::vector<std::string> views;
     std::string views_note;

@@ -34,6 +34,7 @@ struct RunSummary {
   int genus_before_closing = -1;  // genus of the unclosed surface when automatic closing ran
   landmarks::Result landmarks;
   reference::Result reference;
+  reference::CranialResult cranial;  // found = false when not fitted (reason) or --no-cranial
   asymmetry::SafResult saf;
   std::map<std::string, double> saf_regions;
   asymmetry::SrdResult srd;

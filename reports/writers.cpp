@@ -181,6 +181,20 @@ json::Value results_json(const RunSummary& s) {
   pl["normal"] = vec(s.reference.plane.normal);
   pl["rms_landmark_residual_mm"] = s.reference.rms_landmark_residual_mm;
   pl["surface_rms_mm"] = num_or_null(s.reference.surface_rms_mm, s.reference.surface_rms_mm >= 0);
+  if (s.cranial.found) {
+    auto& cp = root["cranial_plane"];
+    cp["point"] = vec(s.cranial.plane.point);
+    cp["normal"] = vec(s.cranial.plane.normal);
+    cp["surface_rms_mm"] = num_or_null(s.cranial.surface_rms_mm, s.cranial.surface_rms_mm >= 0);
+    cp["bone_volume_cm3"] = s.cranial.bone_volume_cm3;
+    cp["angle_to_mandible_plane_deg"] = s.cranial.angle_to_mandible_plane_deg;
+    cp["to_cranial_plane_mm"] = Value::object();
+    for (const auto& [n, d] : s.cranial.to_cranial_mm) cp["to_cranial_plane_mm"][n] = d;
+    cp["to_mandible_plane_mm"] = Value::object();
+    for (const auto& [n, d] : s.cranial.to_mandible_mm) cp["to_mandible_plane_mm"][n] = d;
+  } else {
+    root["cranial_plane"] = Value();
+  }
   auto& ref = root["reference_configuration"];
   ref = Value::object();
   for (const auto& [n, p] : s.reference.reference.points) ref[n] = vec(p);
@@ -299,7 +313,7 @@ std::string landmarks_markup(const LandmarkSet& lms) {
   return root.dump(2) + "\n";
 }
 
-std::string plane_markup(const Plane& plane, double size_mm) {
+std::string plane_markup(const Plane& plane, double size_mm, const std::string& label) {
   using json::Value;
   Value root = markup_root();
   Value m = markup_node("Plane");
@@ -310,7 +324,7 @@ std::string plane_markup(const Plane& plane, double size_mm) {
   m["normal"] = vec(plane.normal);
   auto cp = Value::object();
   cp["id"] = "1";
-  cp["label"] = "mandible symmetry plane";
+  cp["label"] = label;
   cp["position"] = vec(plane.point);
   cp["positionStatus"] = "defined";
   m["controlPoints"] = Value::array();
@@ -508,6 +522,26 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     h << "<tr><td>" << E(n) << "</td><td>" << fixed(b.L) << "</td><td>" << fixed(b.R) << "</td><td>" << fixed(b.diff)
       << "</td><td>" << fixed(b.ratio, 3) << "</td></tr>\n";
   h << "</table>\n";
+
+  if (s.cranial.found) {
+    // Positional versus shape asymmetry (METHOD.md §5): the chin against the
+    // skull's plane and against the mandible's own.
+    const auto& c = s.cranial;
+    h << "<h2>Mandible against the skull</h2>\n<p>Cranial mid-sagittal plane (mirror plane of the bone above the condyles, "
+      << fixed(c.bone_volume_cm3, 0) << " cm&sup3;, residual " << fixed(c.surface_rms_mm) << " mm): "
+      << fixed(c.angle_to_mandible_plane_deg, 1) << "&deg; from the mandible's own plane.</p>\n"
+      << "<table><tr><th>point</th><th>to the cranial plane (mm)</th><th>to the mandible's plane (mm)</th></tr>\n";
+    for (const auto& [n, d] : c.to_cranial_mm) {
+      const auto it = c.to_mandible_mm.find(n);
+      h << "<tr><td>" << E(n == "condylar_midpoint" ? std::string("midpoint of the condylions") : n) << "</td><td>" << fixed(d)
+        << "</td><td>" << (it != c.to_mandible_mm.end() ? fixed(it->second) : "") << "</td></tr>\n";
+    }
+    h << "</table>\n<p class=\"muted\">Signed, + towards the patient's left. The chin's distance to the cranial plane is "
+         "its total deviation; the mandible's own plane leans with a deformed mandible and absorbs much of it (on "
+         "phantoms a 4 mm chin deviation reads 4.0 mm against the skull and 0.1 mm against the mandible's plane). "
+         "Condyles off the cranial plane with a symmetric mandible suggest a positional shift rather than a "
+         "deformity. Plane: cranial_plane.mrk.json.</p>\n";
+  }
 
   h << "<h2>Regional asymmetry</h2>\n<table><tr><th>region</th><th>mirror mean |d| (mm)</th><th>RMS</th><th>p95</th>"
        "<th>max</th><th>SAF map mean (rad)</th></tr>\n";

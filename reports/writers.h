@@ -15,7 +15,8 @@ json::Value results_json(const RunSummary& s);
 // srd.json: the SRD descriptors at the landmarks (METHOD.md §6; docs/method.md).
 json::Value srd_json(const asymmetry::SrdResult& srd);
 std::string landmarks_markup(const LandmarkSet& landmarks);   // Slicer Fiducial, LPS
-std::string plane_markup(const Plane& plane, double size_mm);  // Slicer Plane, LPS
+std::string plane_markup(const Plane& plane, double size_mm,
+                         const std::string& label = "mandible symmetry plane");  // Slicer Plane, LPS
 // figures: segmentation QC PNGs; views: 3D view PNGs (files named
 // <set>_<view>.png); views_note: why there are no 3D views (empty when there are).
 std::string report_html(const RunSummary& s, const std::vector<std::string>& figures,

@@ -373,4 +373,37 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
   return res;
 }
 
+CranialResult cranial_plane(const Mesh& cranium, double volume_cm3, const Plane& mandible_plane, const LandmarkSet& landmarks,
+                            const Options& options) {
+  CranialResult r;
+  r.bone_volume_cm3 = volume_cm3;
+  if (volume_cm3 < 50 || cranium.faces.empty()) {
+    r.reason = "the scan holds too little skull above the condyles (" + std::to_string(static_cast<int>(volume_cm3)) + " cm3)";
+    return r;
+  }
+  std::size_t left = 0;
+  for (const auto& v : cranium.vertices) left += mandible_plane.signed_distance(v) > 0;
+  const double frac = static_cast<double>(left) / static_cast<double>(cranium.vertices.size());
+  if (frac < 0.25 || frac > 0.75) {
+    r.reason = "the scan holds too little of one side of the skull";
+    return r;
+  }
+  double rms = -1;
+  r.plane = refine_plane_on_surface(cranium, mandible_plane, options, &rms);
+  if (dot(r.plane.normal, mandible_plane.normal) < 0) r.plane.normal = -1.0 * r.plane.normal;
+  r.found = true;
+  r.surface_rms_mm = rms;
+  r.angle_to_mandible_plane_deg =
+      std::acos(std::clamp(std::abs(dot(normalized(r.plane.normal), normalized(mandible_plane.normal))), 0.0, 1.0)) * 180 / M_PI;
+  auto add = [&](const std::string& name, const Vec3& p) {
+    r.to_cranial_mm[name] = r.plane.signed_distance(p);
+    r.to_mandible_mm[name] = mandible_plane.signed_distance(p);
+  };
+  for (const char* n : {"Me", "Pog"})
+    if (const Vec3* p = landmarks.find(n)) add(n, *p);
+  const Vec3 *cl = landmarks.find("Co_L"), *cr = landmarks.find("Co_R");
+  if (cl && cr) add("condylar_midpoint", 0.5 * (*cl + *cr));
+  return r;
+}
+
 }  // namespace ms::reference

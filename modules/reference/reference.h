@@ -43,6 +43,27 @@ Result fit(const LandmarkSet& detected, const Mesh* surface, const Options& opti
 Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const Options& options = {},
                               double* rms_mm = nullptr);
 
+// Cranial mid-sagittal plane (METHOD.md §5, optional): the cranium's own
+// mirror plane, by the same mirror-ICP from the mandible's plane, and where the
+// mandible sits against it — positional asymmetry (the mandible shifted or
+// turned against the skull) apart from shape asymmetry (the mandible itself).
+struct CranialResult {
+  bool found = false;
+  std::string reason;                 // why not, when not found
+  Plane plane;                        // normal points to the patient's left
+  double surface_rms_mm = -1;         // mirror-ICP residual on the cranium surface
+  double bone_volume_cm3 = 0;         // cranium used
+  double angle_to_mandible_plane_deg = 0;
+  // Signed distance (+ patient left) of midline landmarks (Me, Pog) and of the
+  // midpoint of the condylions to the cranial plane and to the mandible's own plane.
+  std::map<std::string, double> to_cranial_mm, to_mandible_mm;
+};
+// cranium: closed surface of the cranium (bone above the condyles, mandible
+// excluded); volume_cm3: its bone volume. Refuses (found = false) with less
+// than 50 cm3 or when one side of the mandible's plane holds under a quarter of it.
+CranialResult cranial_plane(const Mesh& cranium, double volume_cm3, const Plane& mandible_plane, const LandmarkSet& landmarks,
+                            const Options& options = {});
+
 // Rigid transform x -> R x + t (R row-major).
 struct RigidTransform {
   std::array<double, 9> R{1, 0, 0, 0, 1, 0, 0, 0, 1};

@@ -76,6 +76,15 @@ TEST(EndToEnd, WritesEveryOutputOfTheContract) {
   EXPECT_EQ(lm.at("markups")[0].at("controlPoints").size(), 8u);
   const Value pl = load(out / "symmetry_plane.mrk.json");
   EXPECT_EQ(pl.at("markups")[0].at("type").as_string(), "Plane");
+  // The sample holds the skull base and vault above the condyles: the cranial
+  // plane is fitted, and on this symmetric head it is the mandible's plane.
+  const Value cp = load(out / "cranial_plane.mrk.json");
+  EXPECT_EQ(cp.at("markups")[0].at("controlPoints")[0].at("label").as_string(), "cranial mid-sagittal plane");
+  const Value cranial = load(out / "results.json").at("cranial_plane");
+  ASSERT_TRUE(cranial.is_object());
+  EXPECT_LT(cranial.at("angle_to_mandible_plane_deg").as_number(), 0.5);
+  EXPECT_GT(cranial.at("bone_volume_cm3").as_number(), 50);
+  EXPECT_LT(std::abs(cranial.at("to_cranial_plane_mm").at("Me").as_number()), 1.0);
   // SRD descriptors at every landmark; on the symmetric sample each twin
   // matches its bin-reversed partner far better than as it is (chirality).
   const Value srd = load(out / "srd.json");
