@@ -2,6 +2,7 @@
 
 #include "asymmetry/measures.h"
 
+#include <Eigen/Dense>
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <Eigen/OrderingMethods>
@@ -50,7 +51,11 @@ struct HarmonicFieldSolver::Impl {
   using Ldlt = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>>;
   std::map<std::vector<int>, std::unique_ptr<Ldlt>> cache;
 
-  Impl(const Mesh& m, double r) : mesh(m), radius(r), L(stiffness(m)) {
+  Impl(const Mesh& m, double r) : mesh(m), radius(r), L(stiffness(m)) {}
+
+  // The per-set path's shared ordering, computed on its first use.
+  void ensure_order() {
+    if (!perm.empty()) return;
     Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pinv;
     Eigen::AMDOrdering<int>()(L, pinv);
     const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> p = pinv.inverse();
@@ -70,6 +75,115 @@ struct HarmonicFieldSolver::Impl {
     return f;
   }
 
+  // Shared path (after prepare): one factorisation of the whole Laplacian with
+  // the vertices D of every prepared disk eliminated last (F = the rest, in AMD
+  // order). Its trailing block is the Schur complement S of F onto D, so a
+  // constraint set C within D leaves the small dense harmonic system
+  // S_OO u_O = -S_OC u_C on the other disks' vertices O, and the same factor
+  // gives u_F = -L_FF^-1 L_FD u_D in one solve. The D block is shifted by eps
+  // (L is singular: constants) and the shift taken back out of S exactly.
+  // Same field as factorising each set, at one factorisation in all.
+  struct Shared {
+    std::vector<int> d_of;  // vertex -> index in D, or -1
+    std::vector<int> row;   // vertex -> row of the permuted system (F first, D last)
+    int nf = 0, nd = 0;
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> factor;
+    Eigen::MatrixXd S_eps;  // Schur complement onto D with the shift (as factorised)
+    Eigen::MatrixXd S;      // the true one
+  };
+  std::unique_ptr<Shared> shared;
+  static constexpr double kShift = 1.0;
+
+  bool build_shared(const std::vector<int>& disk_vertices) {
+    auto sh = std::make_unique<Shared>();
+    const int n = static_cast<int>(L.rows());
+    sh->d_of.assign(n, -1);
+    std::vector<int> d_vertex, f_vertex, f_of(n, -1);
+    for (int v : disk_vertices)
+      if (sh->d_of[v] < 0) sh->d_of[v] = static_cast<int>(d_vertex.size()), d_vertex.push_back(v);
+    for (int v = 0; v < n; ++v)
+      if (sh->d_of[v] < 0) f_of[v] = static_cast<int>(f_vertex.size()), f_vertex.push_back(v);
+    sh->nf = static_cast<int>(f_vertex.size());
+    sh->nd = static_cast<int>(d_vertex.size());
+    if (sh->nf == 0 || sh->nd == 0) return false;
+    // AMD order of L_FF, then D.
+    std::vector<Eigen::Triplet<double>> tff;
+    for (int c = 0; c < L.outerSize(); ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(L, c); it; ++it)
+        if (f_of[it.row()] >= 0 && f_of[c] >= 0) tff.emplace_back(f_of[it.row()], f_of[c], it.value());
+    Eigen::SparseMatrix<double> LFF(sh->nf, sh->nf);
+    LFF.setFromTriplets(tff.begin(), tff.end());
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pinv;
+    Eigen::AMDOrdering<int>()(LFF, pinv);
+    const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> pf = pinv.inverse();
+    sh->row.assign(n, -1);
+    for (int i = 0; i < sh->nf; ++i) sh->row[f_vertex[i]] = pf.indices()[i];
+    for (int j = 0; j < sh->nd; ++j) sh->row[d_vertex[j]] = sh->nf + j;
+    std::vector<Eigen::Triplet<double>> t;
+    t.reserve(static_cast<std::size_t>(L.nonZeros()) + d_vertex.size());
+    for (int c = 0; c < L.outerSize(); ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(L, c); it; ++it) t.emplace_back(sh->row[it.row()], sh->row[c], it.value());
+    for (int j = 0; j < sh->nd; ++j) t.emplace_back(sh->nf + j, sh->nf + j, kShift);
+    Eigen::SparseMatrix<double> A(n, n);
+    A.setFromTriplets(t.begin(), t.end());
+    sh->factor.compute(A);
+    if (sh->factor.info() != Eigen::Success) return false;
+    // Trailing block of the factor: S_eps = L_DD diag(d_D) L_DD^T.
+    Eigen::MatrixXd Ld = Eigen::MatrixXd::Identity(sh->nd, sh->nd);
+    const auto& Lf = sh->factor.matrixL().nestedExpression();
+    for (int c = sh->nf; c < n; ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(Lf, c); it; ++it)
+        if (it.row() > c) Ld(it.row() - sh->nf, c - sh->nf) = it.value();
+    const Eigen::VectorXd dd = sh->factor.vectorD().tail(sh->nd);
+    sh->S_eps = Ld * dd.asDiagonal() * Ld.transpose();
+    sh->S = sh->S_eps - kShift * Eigen::MatrixXd::Identity(sh->nd, sh->nd);
+    shared = std::move(sh);
+    return true;
+  }
+
+  // The field for constraint set (da = 0, db = 1) on the shared path; false
+  // when a disk vertex is outside the prepared disks.
+  bool solve_shared(const std::vector<int>& da, const std::vector<int>& db, std::vector<double>& u) const {
+    if (!shared) return false;
+    const Shared& sh = *shared;
+    const int nd = sh.nd;
+    std::vector<int> role(nd, 0);  // 0 free, 1 fixed at 0, 2 fixed at 1
+    for (int v : da) {
+      if (sh.d_of[v] < 0) return false;
+      role[sh.d_of[v]] = 1;
+    }
+    for (int v : db) {
+      if (sh.d_of[v] < 0) return false;
+      role[sh.d_of[v]] = 2;
+    }
+    std::vector<int> free;
+    for (int j = 0; j < nd; ++j)
+      if (!role[j]) free.push_back(j);
+    Eigen::VectorXd ud = Eigen::VectorXd::Zero(nd);
+    for (int j = 0; j < nd; ++j)
+      if (role[j] == 2) ud[j] = 1.0;
+    if (!free.empty()) {
+      const int no = static_cast<int>(free.size());
+      Eigen::MatrixXd So(no, no);
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(no);
+      for (int a = 0; a < no; ++a) {
+        for (int b = 0; b < no; ++b) So(a, b) = sh.S(free[a], free[b]);
+        for (int j = 0; j < nd; ++j)
+          if (role[j] == 2) rhs[a] -= sh.S(free[a], j);
+      }
+      const Eigen::VectorXd uo = So.ldlt().solve(rhs);
+      for (int a = 0; a < no; ++a) ud[free[a]] = uo[a];
+    }
+    // A [x_F; x_D] = [0; S_eps u_D] has x_D = u_D and x_F = -L_FF^-1 L_FD u_D.
+    const int n = static_cast<int>(L.rows());
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);
+    rhs.tail(nd) = sh.S_eps * ud;
+    const Eigen::VectorXd x = sh.factor.solve(rhs);
+    u.resize(static_cast<std::size_t>(n));
+    for (int v = 0; v < n; ++v) u[static_cast<std::size_t>(v)] = sh.d_of[v] >= 0 ? ud[sh.d_of[v]] : x[sh.row[v]];
+    return true;
+  }
+
   static std::vector<int> key(const std::vector<int>& da, const std::vector<int>& db) {
     std::vector<int> k = da;
     k.insert(k.end(), db.begin(), db.end());
@@ -83,7 +197,7 @@ struct HarmonicFieldSolver::Impl {
 HarmonicFieldSolver::HarmonicFieldSolver(const Mesh& mesh, double r) : impl_(std::make_unique<Impl>(mesh, r)) {}
 HarmonicFieldSolver::~HarmonicFieldSolver() = default;
 
-std::size_t HarmonicFieldSolver::factorisations() const { return impl_->cache.size(); }
+std::size_t HarmonicFieldSolver::factorisations() const { return impl_->cache.size() + (impl_->shared ? 1 : 0); }
 
 std::vector<int> HarmonicFieldSolver::disk(const Vec3& p) const {
   std::vector<int> out;
@@ -100,32 +214,39 @@ std::vector<int> HarmonicFieldSolver::disk(const Vec3& p) const {
 }
 
 void HarmonicFieldSolver::prepare(const std::vector<std::pair<Vec3, Vec3>>& pairs) {
-  std::vector<std::vector<int>> todo;
+  // Every disk of every pair goes into one shared factorisation; pairs whose
+  // disks overlap are left to solve(), which reports them.
+  std::vector<int> all;
   for (const auto& [a, b] : pairs) {
-    std::vector<int> k;
+    const auto da = disk(a), db = disk(b);
     try {
-      k = Impl::key(disk(a), disk(b));
+      Impl::key(da, db);
     } catch (const std::invalid_argument&) {
-      continue;  // solve() reports it for that pair
+      continue;
     }
-    if (!impl_->cache.count(k) && std::find(todo.begin(), todo.end(), k) == todo.end()) todo.push_back(std::move(k));
+    all.insert(all.end(), da.begin(), da.end());
+    all.insert(all.end(), db.begin(), db.end());
   }
-  std::vector<std::unique_ptr<Impl::Ldlt>> done(todo.size());
-#pragma omp parallel for schedule(dynamic)
-  for (int i = 0; i < static_cast<int>(todo.size()); ++i) {
-    try {
-      done[i] = impl_->factorise(todo[i]);
-    } catch (const std::exception&) {
-      // left out: solve() factorises again and reports the failure for that pair
-    }
-  }
-  for (std::size_t i = 0; i < todo.size(); ++i)
-    if (done[i]) impl_->cache[todo[i]] = std::move(done[i]);
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  impl_->shared.reset();
+  if (!all.empty()) impl_->build_shared(all);  // on failure solve() factorises per set
+}
+
+bool HarmonicFieldSolver::solve_prepared(const Vec3& a, const Vec3& b, std::vector<double>& u) const {
+  const std::vector<int> da = disk(a), db = disk(b);
+  Impl::key(da, db);  // throws for overlapping disks
+  return impl_->solve_shared(da, db, u);
 }
 
 std::vector<double> HarmonicFieldSolver::solve(const Vec3& a, const Vec3& b) {
   const std::vector<int> da = disk(a), db = disk(b);
   const auto k = Impl::key(da, db);
+  {
+    std::vector<double> u;
+    if (impl_->solve_shared(da, db, u)) return u;
+  }
+  impl_->ensure_order();
   auto& slot = impl_->cache[k];
   if (!slot) slot = impl_->factorise(k);
   const int n = static_cast<int>(impl_->mesh.vertices.size());

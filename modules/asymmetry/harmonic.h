@@ -24,9 +24,15 @@ class HarmonicFieldSolver {
   // u = 0 on the disk around a, u = 1 on the disk around b, L u = 0 elsewhere.
   // Throws std::invalid_argument if the two disks overlap.
   std::vector<double> solve(const Vec3& a, const Vec3& b);
-  // Factorise the constraint sets of these (a, b) pairs in parallel (OpenMP);
-  // solve() then only back-substitutes. Optional: solve() factorises on demand.
+  // Prepare for these (a, b) pairs: one factorisation of the Laplacian outside
+  // all their disks and its Schur complement onto the disk vertices, after
+  // which solve() for any pair of prepared disks is a small dense solve and one
+  // back-substitution (the same field as a factorisation per constraint set).
+  // Optional: without it solve() factorises each constraint set on demand.
   void prepare(const std::vector<std::pair<Vec3, Vec3>>& pairs);
+  // solve() on the prepared factorisation only: thread-safe; false (u
+  // untouched) when a disk is outside the prepared ones.
+  bool solve_prepared(const Vec3& a, const Vec3& b, std::vector<double>& u) const;
   std::vector<int> disk(const Vec3& p) const;
   std::size_t factorisations() const;
 

@@ -97,6 +97,30 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
             pairs.emplace_back(*lm.find(x), *lm.find(y));
     solver.prepare(pairs);
   }
+  {
+    // Every field the configurations need, on the shared factorisation in
+    // parallel; anything off it (overlapping disks, a failed shared
+    // factorisation) is left to gradient(), serially.
+    std::vector<std::pair<std::string, std::string>> need;
+    for (const auto& c : opt.configurations)
+      if (complete(c))
+        for (const auto& k : {c, mirrored(c)})
+          for (const auto& ab : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)})
+            if (std::find(need.begin(), need.end(), ab) == need.end()) need.push_back(ab);
+    std::vector<std::vector<Vec3>> g(need.size());
+#pragma omp parallel for schedule(dynamic)
+    for (int i = 0; i < static_cast<int>(need.size()); ++i) {
+      std::vector<double> u;
+      try {
+        if (solver.solve_prepared(*lm.find(need[static_cast<std::size_t>(i)].first), *lm.find(need[static_cast<std::size_t>(i)].second), u))
+          g[static_cast<std::size_t>(i)] = face_gradients(mesh, u);
+      } catch (const std::exception&) {
+        // gradient() reports it
+      }
+    }
+    for (std::size_t i = 0; i < need.size(); ++i)
+      if (!g[i].empty()) grads[need[i]] = std::move(g[i]);
+  }
   const std::size_t nv = mesh.vertices.size();
   const auto area = geometry::face_areas(mesh);
   std::unique_ptr<SurfaceSmoother> smoother;
@@ -108,10 +132,16 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
   std::vector<int> sigma;
   if (smoother) {
     vertex_mirror.resize(nv);
-    for (std::size_t v = 0; v < nv; ++v) vertex_mirror[v] = index.closest(plane.reflect(mesh.vertices[v]));
+    if (nv > 0) vertex_mirror[0] = index.closest(plane.reflect(mesh.vertices[0]));  // builds CGAL's search tree
+#pragma omp parallel for schedule(static)
+    for (long v = 1; v < static_cast<long>(nv); ++v)
+      vertex_mirror[static_cast<std::size_t>(v)] = index.closest(plane.reflect(mesh.vertices[static_cast<std::size_t>(v)]));
   } else {
     sigma.resize(nf);
-    for (std::size_t f = 0; f < nf; ++f) {
+    if (nf > 0) index.closest(plane.reflect(mesh.vertices[0]));  // builds CGAL's search tree
+#pragma omp parallel for schedule(static)
+    for (long fl = 0; fl < static_cast<long>(nf); ++fl) {
+      const std::size_t f = static_cast<std::size_t>(fl);
       const auto& t = mesh.faces[f];
       const Vec3 c = (1.0 / 3.0) * (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]);
       sigma[f] = index.closest(plane.reflect(c)).face;
@@ -149,7 +179,14 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
         for (std::size_t f = 0; f < nf; ++f) w[f] = std::isnan(th[f]) ? 0.0 : area[f];
         return smoother->smooth_face_angles(th, w);
       };
-      const auto sc = smoothed(tc), sm = smoothed(tm);
+      std::vector<double> sc, sm;
+#pragma omp parallel sections
+      {
+#pragma omp section
+        sc = smoothed(tc);
+#pragma omp section
+        sm = smoothed(tm);
+      }
       if (opt.keep_fields) {  // the fields the comparison uses: smoothed per vertex
         r.fields.push_back({c.name, false, c, sc});
         r.fields.push_back({c.name, true, m, sm});
