@@ -272,9 +272,9 @@ Scene make_scene(const std::vector<Model>& models, const SceneLayout& L, int pct
 
 // ------------------------------------------------------------- descriptors
 
-enum Variant { kSI, kISI, kISI_R4, kISI_R1, kSHOT, kVariants };
-const char* const kName[kVariants] = {"SI", "ISI", "ISI normals R/4", "ISI normals R", "SHOT"};
-const char* const kKey[kVariants] = {"SI", "ISI", "ISI_R4", "ISI_R", "SHOT"};
+enum Variant { kSI, kISI, kISI_R4, kISI_R2, kSHOT, kVariants };
+const char* const kName[kVariants] = {"SI", "ISI", "ISI normals R/4", "ISI normals R/2", "SHOT"};
+const char* const kKey[kVariants] = {"SI", "ISI", "ISI_R4", "ISI_R2", "SHOT"};
 
 struct Descriptors {
   int len = 0;
@@ -339,9 +339,9 @@ Descriptors shot(const Mesh& mesh, const std::vector<int>& keypoints, double R, 
 Descriptors describe(Variant v, const Mesh& mesh, const std::vector<int>& keypoints, double R, int threads) {
   if (v == kSHOT) return shot(mesh, keypoints, R, threads);
   d::Options o;
-  o.support_radius_mm = R;  // 15 x 15 bins, support angle 90 deg, LRF radius R: the defaults
+  o.support_radius_mm = R;  // 15 x 15 bins, support angle 90 deg, LRF and normal radius R: the defaults
   if (v == kISI_R4) o.normal_radius_mm = R / 4;
-  if (v == kISI_R1) o.normal_radius_mm = R;
+  if (v == kISI_R2) o.normal_radius_mm = R / 2;
   const d::Kind kind = v == kSI ? d::Kind::kSpinImage : d::Kind::kImprovedSpinImage;
   const auto t0 = Clock::now();
   const d::SpinImages si(mesh, o);  // neighbour grid, vertex areas and normals
@@ -472,7 +472,7 @@ void write_svg(const std::string& path, int pct, const std::array<Summary, kVari
   o << "<text x=\"" << X(0.5) << "\" y=\"" << H - 15 << "\" text-anchor=\"middle\" font-size=\"13\">1 - precision</text>\n";
   o << "<text transform=\"translate(20," << Y(0.5) << ") rotate(-90)\" text-anchor=\"middle\" font-size=\"13\">recall</text>\n";
   // Curves: the thin ISI variants first, the three descriptors of the thesis on top.
-  for (int v : {kISI_R4, kISI_R1, kSI, kSHOT, kISI}) {
+  for (int v : {kISI_R4, kISI_R2, kSI, kSHOT, kISI}) {
     const auto& c = S[static_cast<std::size_t>(v)].curve;
     if (c.empty()) continue;
     o << "<polyline fill=\"none\" stroke=\"" << kColour[v] << "\" stroke-width=\"" << kWidth[v] << "\"";
@@ -685,7 +685,7 @@ int main(int argc, char** argv) try {
               "| recall @ 1-p ≤ 0.2 | recall, all matched | 1-p, all matched |\n");
   std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (std::size_t l = 0; l < kNoisePercent.size(); ++l)
-    for (int v : {kISI, kSHOT, kSI, kISI_R4, kISI_R1}) {
+    for (int v : {kISI, kSHOT, kSI, kISI_R4, kISI_R2}) {
       const auto& s = S[l][static_cast<std::size_t>(v)];
       std::printf("| %d %% | %s | %d | %ld | %ld | %.3f | %.3f | %.3f | %.3f | %.3f |\n", kNoisePercent[l], kName[v],
                   base[static_cast<std::size_t>(v)].len, s.total, s.invalid, s.auc, s.recall_at_01, s.recall_at_02,
@@ -696,7 +696,7 @@ int main(int argc, char** argv) try {
   std::printf(" model features invalid | per keypoint (ms) | setup per mesh (s) | all / keypoint (ms) |\n|---|");
   for (std::size_t l = 0; l < kNoisePercent.size(); ++l) std::printf("---:|");
   std::printf("---:|---:|---:|---:|\n");
-  for (int v : {kISI, kSHOT, kSI, kISI_R4, kISI_R1}) {
+  for (int v : {kISI, kSHOT, kSI, kISI_R4, kISI_R2}) {
     std::printf("| %s |", kName[v]);
     for (std::size_t l = 0; l < kNoisePercent.size(); ++l) std::printf(" %.3f |", S[l][static_cast<std::size_t>(v)].auc);
     const auto u = static_cast<std::size_t>(v);
@@ -711,7 +711,7 @@ int main(int argc, char** argv) try {
               "| AUC, location only | recall, all matched, location only |\n");
   std::printf("|---|---|---:|---:|---:|---:|---:|---:|\n");
   for (std::size_t l = 0; l < kNoisePercent.size(); ++l)
-    for (int v : {kISI, kSHOT, kSI, kISI_R4, kISI_R1}) {
+    for (int v : {kISI, kSHOT, kSI, kISI_R4, kISI_R2}) {
       const auto& r = results[l][static_cast<std::size_t>(v)];
       long n[4] = {0, 0, 0, 0};
       for (const auto& m : r)

@@ -142,6 +142,7 @@ std::vector<LandmarkTransfer> transfer_landmarks(const Mesh& source, const Landm
   const SpinImages src_isi(source, dopt), tgt_isi(target, dopt);
   const double inlier_mm = opt.inlier_mm > 0 ? opt.inlier_mm : 3 * res;
   const geometry::ClosestPointIndex target_index(target);
+  const auto target_normals = geometry::face_normals(target);
   const int len = src_isi.length();
   std::mt19937_64 rng(opt.seed);
   // Target keypoints: one random sample of the whole surface, described once
@@ -198,7 +199,7 @@ std::vector<LandmarkTransfer> transfer_landmarks(const Mesh& source, const Landm
     }
     // Refine the patch on the target surface.
     const Mesh p = patch(source, L, opt.patch_radius_mm);
-    const auto icp = reference::align_rigid_from(p, target, rs.transform, 20, 0.5);
+    const auto icp = reference::align_rigid_from(p, target_index, target_normals, rs.transform, 20, 0.5);
     std::size_t close = 0;
     for (const auto& v : p.vertices)
       if (target_index.closest(icp.transform.apply(v)).distance <= 1.0) ++close;

@@ -118,21 +118,42 @@ struct SpinImages::Impl {
   mutable std::once_flag lrf_once;
   mutable std::vector<Vec3> lrf_normal;  // z of the frame of radius normal_radius at every vertex
 
-  Frame frame(int v, double radius, std::vector<int>& nb) const {
+  // Distance-weighted scatter of the neighbours within radius about vertex v
+  // (SHOT's M), as the 6 entries of a symmetric matrix; false when too few.
+  bool scatter(int v, double radius, std::vector<int>& nb, Eigen::Matrix3d& M) const {
     const Vec3& p = mesh.vertices[static_cast<std::size_t>(v)];
     grid->within(p, radius, nb);
-    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-    double wsum = 0;
+    double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0, wsum = 0;
     for (int i : nb) {
       const Vec3 d = mesh.vertices[static_cast<std::size_t>(i)] - p;
-      const double w = radius - norm(d);
-      const Eigen::Vector3d e(d[0], d[1], d[2]);
-      M += w * e * e.transpose();
+      const double w = radius - std::sqrt(dot(d, d));
+      xx += w * d[0] * d[0], xy += w * d[0] * d[1], xz += w * d[0] * d[2];
+      yy += w * d[1] * d[1], yz += w * d[1] * d[2], zz += w * d[2] * d[2];
       wsum += w;
     }
+    if (nb.size() < 3 || wsum <= 0) return false;
+    M << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+    M /= wsum;
+    return true;
+  }
+
+  // z axis of the frame (smallest eigenvector, outward): the ISI's normals.
+  Vec3 frame_z(int v, double radius, std::vector<int>& nb) const {
+    Eigen::Matrix3d M;
+    const Vec3& n0 = normal[static_cast<std::size_t>(v)];
+    if (!scatter(v, radius, nb, M)) return n0;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(M, Eigen::ComputeEigenvectors);  // ascending eigenvalues
+    Vec3 z{es.eigenvectors()(0, 0), es.eigenvectors()(1, 0), es.eigenvectors()(2, 0)};
+    return dot(z, n0) < 0 ? -1.0 * z : z;
+  }
+
+  Frame frame(int v, double radius, std::vector<int>& nb) const {
+    const Vec3& p = mesh.vertices[static_cast<std::size_t>(v)];
     Frame f;
     const Vec3& n0 = normal[static_cast<std::size_t>(v)];
-    if (nb.size() < 3 || wsum <= 0) {  // too few neighbours: fall back to the vertex normal
+    Eigen::Matrix3d M;
+    if (!scatter(v, radius, nb, M)) {  // too few neighbours: the vertex normal and any tangent
       f.z = n0;
       const Vec3 t = std::abs(n0[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
       f.x = normalized(t - dot(t, n0) * n0);
@@ -140,7 +161,7 @@ struct SpinImages::Impl {
       return f;
     }
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(M / wsum);  // ascending eigenvalues
+    es.computeDirect(M);  // ascending eigenvalues
     const auto ev = es.eigenvectors();
     f.z = {ev(0, 0), ev(1, 0), ev(2, 0)};
     f.x = {ev(0, 2), ev(1, 2), ev(2, 2)};
@@ -161,7 +182,7 @@ struct SpinImages::Impl {
       {
         std::vector<int> nb;
 #pragma omp for schedule(dynamic, 256)
-        for (long v = 0; v < n; ++v) lrf_normal[static_cast<std::size_t>(v)] = frame(static_cast<int>(v), opt.normal_radius_mm, nb).z;
+        for (long v = 0; v < n; ++v) lrf_normal[static_cast<std::size_t>(v)] = frame_z(static_cast<int>(v), opt.normal_radius_mm, nb);
       }
     });
     return lrf_normal;
@@ -175,7 +196,11 @@ struct SpinImages::Impl {
     const Vec3& p = mesh.vertices[static_cast<std::size_t>(v)];
     const bool isi = kind == Kind::kImprovedSpinImage;
     const std::vector<Vec3>& nrm = isi ? neighbour_normals() : normal;
-    const Vec3 n = isi ? frame(v, opt.lrf_radius_mm, nb).z : normal[static_cast<std::size_t>(v)];
+    // The reference normal: the frame's z at lrf_radius (the neighbour normal
+    // itself when the two radii agree, as by default).
+    const Vec3 n = !isi ? normal[static_cast<std::size_t>(v)]
+                        : opt.lrf_radius_mm == opt.normal_radius_mm ? nrm[static_cast<std::size_t>(v)]
+                                                                     : frame_z(v, opt.lrf_radius_mm, nb);
     const double cos_support = std::cos(opt.support_angle_deg * M_PI / 180);
     const double support = opt.support_angle_deg * M_PI / 180;
     grid->within(p, R, nb);
@@ -207,7 +232,7 @@ SpinImages::SpinImages(const Mesh& mesh, const Options& options) : impl_(std::ma
   m.resolution = mesh_resolution(mesh);
   if (m.opt.support_radius_mm <= 0) m.opt.support_radius_mm = 10 * m.resolution;
   if (m.opt.lrf_radius_mm <= 0) m.opt.lrf_radius_mm = m.opt.support_radius_mm;
-  if (m.opt.normal_radius_mm <= 0) m.opt.normal_radius_mm = 0.5 * m.opt.support_radius_mm;
+  if (m.opt.normal_radius_mm <= 0) m.opt.normal_radius_mm = m.opt.support_radius_mm;
   if (!(m.opt.support_radius_mm > 0)) throw std::invalid_argument("descriptors: the mesh has no edges");
   m.normal = geometry::vertex_normals(mesh);
   m.area.assign(mesh.vertices.size(), 0.0);

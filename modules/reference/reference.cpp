@@ -140,6 +140,17 @@ AlignResult align_rigid(const Mesh& moving, const Mesh& fixed, const LandmarkSet
 
 AlignResult align_rigid_from(const Mesh& moving, const Mesh& fixed, const RigidTransform& initial, int rounds,
                              double cauchy_mm) {
+  if (fixed.faces.empty() || moving.vertices.empty()) {
+    AlignResult res;
+    res.transform = initial;
+    return res;
+  }
+  const geometry::ClosestPointIndex index(fixed);
+  return align_rigid_from(moving, index, geometry::face_normals(fixed), initial, rounds, cauchy_mm);
+}
+
+AlignResult align_rigid_from(const Mesh& moving, const geometry::ClosestPointIndex& index,
+                             const std::vector<Vec3>& fn, const RigidTransform& initial, int rounds, double cauchy_mm) {
   AlignResult res;
   Eigen::Matrix3d R0;
   for (int r = 0; r < 3; ++r)
@@ -159,9 +170,7 @@ AlignResult align_rigid_from(const Mesh& moving, const Mesh& fixed, const RigidT
     T.t = {t[0], t[1], t[2]};
     return T;
   };
-  if (!fixed.faces.empty() && !moving.vertices.empty()) {
-    const geometry::ClosestPointIndex index(fixed);
-    const auto fn = geometry::face_normals(fixed);
+  if (!fn.empty() && !moving.vertices.empty()) {
     const std::size_t step = std::max<std::size_t>(1, moving.vertices.size() / 6000);
     for (int round = 0; round < rounds; ++round) {
       const RigidTransform T = current();

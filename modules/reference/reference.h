@@ -13,6 +13,10 @@
 
 #include "core/types.h"
 
+namespace ms::geometry {
+class ClosestPointIndex;
+}
+
 namespace ms::reference {
 
 struct Options {
@@ -86,6 +90,11 @@ AlignResult align_rigid(const Mesh& moving, const Mesh& fixed, const LandmarkSet
                         int rounds = 12, double cauchy_mm = 1.0);
 // The same ICP from a given initial transform (moving -> fixed).
 AlignResult align_rigid_from(const Mesh& moving, const Mesh& fixed, const RigidTransform& initial, int rounds = 12,
+                             double cauchy_mm = 1.0);
+// ... with the fixed surface's closest-point index and face normals built once
+// by the caller (many patches aligned to one surface).
+AlignResult align_rigid_from(const Mesh& moving, const geometry::ClosestPointIndex& fixed_index,
+                             const std::vector<Vec3>& fixed_face_normals, const RigidTransform& initial, int rounds = 12,
                              double cauchy_mm = 1.0);
 
 // Least-squares rigid transform taking each pair's first point onto its
