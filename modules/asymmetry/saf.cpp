@@ -88,6 +88,7 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
       if (!lm.has(*n)) return false;
     return true;
   };
+  std::unique_ptr<SurfaceSmoother> smoother;
   {
     std::vector<std::pair<Vec3, Vec3>> pairs;
     for (const auto& c : opt.configurations)
@@ -95,7 +96,15 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
         for (const auto& k : {c, mirrored(c)})
           for (const auto& [x, y] : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)})
             pairs.emplace_back(*lm.find(x), *lm.find(y));
-    solver.prepare(pairs);
+    // The two factorisations (harmonic fields, heat smoother) are independent
+    // and single-threaded: side by side.
+#pragma omp parallel sections
+    {
+#pragma omp section
+      solver.prepare(pairs);
+#pragma omp section
+      if (opt.smoothing_mm > 0) smoother = std::make_unique<SurfaceSmoother>(mesh, opt.smoothing_mm);
+    }
   }
   {
     // Every field the configurations need, on the shared factorisation in
@@ -123,8 +132,6 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
   }
   const std::size_t nv = mesh.vertices.size();
   const auto area = geometry::face_areas(mesh);
-  std::unique_ptr<SurfaceSmoother> smoother;
-  if (opt.smoothing_mm > 0) smoother = std::make_unique<SurfaceSmoother>(mesh, opt.smoothing_mm);
   // Mirror correspondence. Smoothed: σ(v) = closest surface point to the
   // reflected vertex (face + barycentric coordinates). Per face: σ(f) = face
   // containing the closest surface point to the reflected centroid.
