@@ -302,11 +302,12 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       // scans), SAF map on 0..0.25 rad.
       reports::ColourMap mirror_cm{"mirror distance (mm)", -3.0, 3.0, true};
       reports::ColourMap saf_cm{"SAF asymmetry (rad)", 0.0, 0.25, false};
-      for (const auto& [name, values, cm] :
-           {std::make_tuple(std::string("view_mirror"), &S.mirror.per_vertex, mirror_cm),
-            std::make_tuple(std::string("view_saf"), &S.saf.per_vertex, saf_cm)}) {
-        const auto rv = reports::render_views(surf.mesh, *values, cm, S.landmarks.landmarks, S.reference.plane,
-                                              (stage_dir / "qc" / name).string());
+      const auto rendered = reports::render_view_sets(
+          surf.mesh,
+          {{&S.mirror.per_vertex, mirror_cm, (stage_dir / "qc" / "view_mirror").string()},
+           {&S.saf.per_vertex, saf_cm, (stage_dir / "qc" / "view_saf").string()}},
+          S.landmarks.landmarks, S.reference.plane);
+      for (const auto& rv : rendered) {
         if (!rv.error.empty()) {
           views_note = rv.error;
           break;

@@ -62,39 +62,34 @@ Ptr<vtkLookupTable> lookup(const ColourMap& c) {
 
 }  // namespace
 
-RenderedViews render_views(const Mesh& mesh, const std::vector<double>& values, const ColourMap& colours,
-                           const LandmarkSet& landmarks, const Plane& plane, const std::string& prefix, int width,
-                           int height) {
-  RenderedViews out;
-  if (mesh.faces.empty()) {
-    out.error = "no surface to render";
-    return out;
+std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<ViewSet>& sets, const LandmarkSet& landmarks,
+                                            const Plane& plane, int width, int height) {
+  std::vector<RenderedViews> all(sets.size());
+  auto fail = [&](const std::string& why) {
+    for (auto& o : all) {
+      for (const auto& f : o.files) std::filesystem::remove(f);
+      o.files.clear();
+      o.error = why;
+    }
+    return all;
+  };
+  if (sets.empty()) return all;
+  if (mesh.faces.empty()) return fail("no surface to render");
+  {
+    std::string why;
+    if (!ensure_display(&why)) return fail(why);
   }
-  if (!ensure_display(&out.error)) return out;
 
+  // Geometry and normals once; each set only swaps the scalars and colours.
   auto pd = surface::to_polydata(mesh);
-  const bool coloured = values.size() == mesh.vertices.size();
-  if (coloured) {
-    auto arr = Ptr<vtkDoubleArray>::New();
-    arr->SetName("value");
-    for (double x : values) arr->InsertNextValue(std::isfinite(x) ? x : 0.0);
-    pd->GetPointData()->SetScalars(arr);
-  }
   auto normals = Ptr<vtkPolyDataNormals>::New();
   normals->SetInputData(pd);
   normals->SplittingOff();
   normals->ConsistencyOff();  // the mesh is already outward
+  normals->Update();
+  vtkSmartPointer<vtkPolyData> shaded = normals->GetOutput();
   auto mapper = Ptr<vtkPolyDataMapper>::New();
-  mapper->SetInputConnection(normals->GetOutputPort());
-  const auto lut = lookup(colours);
-  if (coloured) {
-    mapper->SetLookupTable(lut);
-    mapper->SetScalarRange(colours.lo, colours.hi);
-    mapper->UseLookupTableScalarRangeOn();
-    mapper->SetScalarModeToUsePointData();
-  } else {
-    mapper->ScalarVisibilityOff();
-  }
+  mapper->SetInputData(shaded);
   auto actor = Ptr<vtkActor>::New();
   actor->SetMapper(mapper);
   actor->GetProperty()->SetColor(0.93, 0.89, 0.80);
@@ -145,31 +140,29 @@ RenderedViews render_views(const Mesh& mesh, const std::vector<double>& values, 
     plane_actor->GetProperty()->SetOpacity(0.18);
     ren->AddActor(plane_actor);
   }
-  if (coloured) {
-    auto bar = Ptr<vtkScalarBarActor>::New();
-    bar->SetLookupTable(lut);
-    bar->SetTitle(colours.title.c_str());
-    bar->SetNumberOfLabels(5);
-    bar->SetLabelFormat("%.2g");
-    bar->SetOrientationToHorizontal();
-    bar->SetPosition(0.15, 0.02);
-    bar->SetWidth(0.7);
-    bar->SetHeight(0.12);
-    for (auto* tp : {bar->GetTitleTextProperty(), bar->GetLabelTextProperty()}) {
-      tp->SetColor(0.1, 0.1, 0.1);
-      tp->SetFontSize(12);
-      tp->ShadowOff();
-      tp->ItalicOff();
-      tp->BoldOff();
-    }
-    ren->AddActor2D(bar);
+  auto bar = Ptr<vtkScalarBarActor>::New();
+  bar->SetNumberOfLabels(5);
+  bar->SetLabelFormat("%.2g");
+  bar->SetOrientationToHorizontal();
+  bar->SetPosition(0.15, 0.02);
+  bar->SetWidth(0.7);
+  bar->SetHeight(0.12);
+  for (auto* tp : {bar->GetTitleTextProperty(), bar->GetLabelTextProperty()}) {
+    tp->SetColor(0.1, 0.1, 0.1);
+    tp->SetFontSize(12);
+    tp->ShadowOff();
+    tp->ItalicOff();
+    tp->BoldOff();
   }
+  ren->AddActor2D(bar);
 
+  // One window (one OpenGL context, shaders compiled once) for every set.
   auto win = Ptr<vtkRenderWindow>::New();
   win->SetOffScreenRendering(1);
   win->AddRenderer(ren);
   win->SetSize(width, height);
-  win->SetMultiSamples(4);
+  win->SetMultiSamples(0);  // FXAA instead: multisampling costs most of a software-rendered frame
+  ren->UseFXAAOn();
 
   struct View {
     const char* name;
@@ -180,37 +173,58 @@ RenderedViews render_views(const Mesh& mesh, const std::vector<double>& values, 
   const Vec3 anterior = -1.0 * ap, inferior = -1.0 * si;
   const View views[] = {
       {"front", anterior, si, true}, {"below", inferior, anterior, true}, {"left", ml, si, false}, {"right", -1.0 * ml, si, false}};
-  for (const View& v : views) {
-    plane_actor->SetVisibility(v.plane);
-    auto* cam = ren->GetActiveCamera();
-    cam->SetFocalPoint(c[0], c[1], c[2]);
-    const Vec3 pos = c + (3.0 * size) * v.eye;
-    cam->SetPosition(pos[0], pos[1], pos[2]);
-    cam->SetViewUp(v.up[0], v.up[1], v.up[2]);
-    cam->SetViewAngle(30);
-    ren->ResetCamera();
-    cam->Zoom(1.25);
-    win->Render();
-    auto grab = Ptr<vtkWindowToImageFilter>::New();
-    grab->SetInput(win);
-    grab->ReadFrontBufferOff();
-    grab->Update();
-    const std::string file = prefix + "_" + v.name + ".png";
-    auto png = Ptr<vtkPNGWriter>::New();
-    png->SetFileName(file.c_str());
-    png->SetInputConnection(grab->GetOutputPort());
-    png->Write();
-    if (png->GetErrorCode() != 0 || !std::filesystem::exists(file)) {
-      out.error = "cannot write " + file;
-      break;
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    const ViewSet& set = sets[k];
+    const bool coloured = set.values && set.values->size() == mesh.vertices.size();
+    const auto lut = lookup(set.colours);
+    if (coloured) {
+      auto arr = Ptr<vtkDoubleArray>::New();
+      arr->SetName("value");
+      for (double x : *set.values) arr->InsertNextValue(std::isfinite(x) ? x : 0.0);
+      shaded->GetPointData()->SetScalars(arr);
+      mapper->SetLookupTable(lut);
+      mapper->SetScalarRange(set.colours.lo, set.colours.hi);
+      mapper->UseLookupTableScalarRangeOn();
+      mapper->SetScalarModeToUsePointData();
+      mapper->ScalarVisibilityOn();
+      bar->SetLookupTable(lut);
+      bar->SetTitle(set.colours.title.c_str());
+    } else {
+      mapper->ScalarVisibilityOff();
     }
-    out.files.push_back(file);
+    bar->SetVisibility(coloured);
+    shaded->Modified();
+    for (const View& v : views) {
+      plane_actor->SetVisibility(v.plane);
+      auto* cam = ren->GetActiveCamera();
+      cam->SetFocalPoint(c[0], c[1], c[2]);
+      const Vec3 pos = c + (3.0 * size) * v.eye;
+      cam->SetPosition(pos[0], pos[1], pos[2]);
+      cam->SetViewUp(v.up[0], v.up[1], v.up[2]);
+      cam->SetViewAngle(30);
+      ren->ResetCamera();
+      cam->Zoom(1.25);
+      win->Render();
+      auto grab = Ptr<vtkWindowToImageFilter>::New();
+      grab->SetInput(win);
+      grab->ReadFrontBufferOff();
+      grab->Update();
+      const std::string file = set.prefix + "_" + v.name + ".png";
+      auto png = Ptr<vtkPNGWriter>::New();
+      png->SetFileName(file.c_str());
+      png->SetInputConnection(grab->GetOutputPort());
+      png->Write();
+      if (png->GetErrorCode() != 0 || !std::filesystem::exists(file)) return fail("cannot write " + file);
+      all[k].files.push_back(file);
+    }
   }
-  if (!out.error.empty()) {
-    for (const auto& f : out.files) std::filesystem::remove(f);
-    out.files.clear();
-  }
-  return out;
+  return all;
+}
+
+RenderedViews render_views(const Mesh& mesh, const std::vector<double>& values, const ColourMap& colours,
+                           const LandmarkSet& landmarks, const Plane& plane, const std::string& prefix, int width,
+                           int height) {
+  return render_view_sets(mesh, {ViewSet{&values, colours, prefix}}, landmarks, plane, width, height).front();
 }
 
 }  // namespace ms::reports

@@ -22,6 +22,20 @@ struct RenderedViews {
   std::string error;               // empty when rendered
 };
 
+// One set of four views: the surface coloured by values (one per vertex;
+// anything else renders it uncoloured) with colours, written as
+// prefix_{front,below,left,right}.png.
+struct ViewSet {
+  const std::vector<double>* values = nullptr;
+  ColourMap colours;
+  std::string prefix;
+};
+
+// Every set through one window (one OpenGL context). Never throws: on failure
+// every result carries the error and no file is kept.
+std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<ViewSet>& sets, const LandmarkSet& landmarks,
+                                            const Plane& plane, int width = 520, int height = 420);
+
 // Writes prefix_{front,below,left,right}.png. Never throws: on failure the
 // error says why (no display, no Xvfb, OpenGL failure) and no file is kept.
 RenderedViews render_views(const Mesh& mesh, const std::vector<double>& values, const ColourMap& colours,
