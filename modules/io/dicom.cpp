@@ -52,12 +52,18 @@ void on_gdcm_abort(int) {
 
 class AbortGuard {
  public:
+#ifndef MANDISYM_FUZZING
   AbortGuard() {
     struct sigaction sa {};
     sa.sa_handler = on_gdcm_abort;
     ::sigaction(SIGABRT, &sa, &g_previous_abort);
   }
   ~AbortGuard() { ::sigaction(SIGABRT, &g_previous_abort, nullptr); }
+#else
+  // Fuzzing: let libFuzzer see the abort and keep the input that caused it.
+  AbortGuard() { (void)on_gdcm_abort; }
+  ~AbortGuard() = default;
+#endif
   static void reading(const std::string& file) {
     std::strncpy(g_reading, file.c_str(), sizeof g_reading - 1);
     g_reading[sizeof g_reading - 1] = 0;
@@ -83,6 +89,12 @@ std::uint32_t le32(const unsigned char* b) {
   return static_cast<std::uint32_t>(b[0]) | (static_cast<std::uint32_t>(b[1]) << 8) | (static_cast<std::uint32_t>(b[2]) << 16) |
          (static_cast<std::uint32_t>(b[3]) << 24);
 }
+bool known_vr(const char* vr) {
+  static const std::set<std::string> k{"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO", "LT",
+                                       "OB", "OD", "OF", "OL", "OV", "OW", "PN", "SH", "SL", "SQ", "SS", "ST",
+                                       "SV", "TM", "UC", "UI", "UL", "UN", "UR", "US", "UT", "UV"};
+  return k.count(std::string(vr, 2)) > 0;
+}
 bool long_vr(const char* vr) {
   static const std::set<std::string> k32{"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
   return k32.count(std::string(vr, 2)) > 0;
@@ -101,7 +113,8 @@ bool walk_meta_group(ByteReader& r, std::uintmax_t pos, std::uintmax_t* end, std
     }
     if (!r.read(pos + 4, h + 4, 4)) return false;
     const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
-    if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) return false;
+    // GDCM's meta-group reader asserts on a VR it does not know (found by fuzzing: "UK").
+    if (!known_vr(vr)) return false;
     if (vr[0] == 'S' && vr[1] == 'Q') return false;  // never in the file meta group
     std::uintmax_t len, head;
     if (long_vr(vr)) {
@@ -132,13 +145,35 @@ bool walk_meta_group(ByteReader& r, std::uintmax_t pos, std::uintmax_t* end, std
 // element with an odd VR, say) stops the walk and leaves the file to GDCM.
 enum class Walk { Ok, TooLong, Unsure };  // TooLong: refuse the file (a length past its end, a misplaced delimiter)
 
-Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit) {
+Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit,
+                   bool big = false) {
+  // Byte order of tags and lengths (explicit VR big endian, 1.2.840.10008.1.2.2).
+  const auto u16 = [big](const unsigned char* x) -> std::uint32_t { return big ? (x[0] << 8) | x[1] : le16(x); };
+  const auto u32 = [big](const unsigned char* x) -> std::uint32_t {
+    return big ? (static_cast<std::uint32_t>(x[0]) << 24) | (static_cast<std::uint32_t>(x[1]) << 16) |
+                     (static_cast<std::uint32_t>(x[2]) << 8) | static_cast<std::uint32_t>(x[3])
+               : le32(x);
+  };
   if (depth > 16) return Walk::Unsure;
   for (int n = 0; n < 1000000; ++n) {
     unsigned char h[12];
-    if (pos >= limit) return Walk::Ok;
-    if (!r.read(pos, h, 8)) return depth == 0 ? Walk::Ok : Walk::TooLong;  // a nested item must be complete
-    const std::uint32_t group = le16(h), element = le16(h + 2);
+    // An element running past the end of its item (a nested sequence longer
+    // than the item's declared length): GDCM throws, then asserts in its
+    // fallback reader (found by fuzzing).
+    if (pos > limit) return Walk::TooLong;
+    if (pos == limit) return Walk::Ok;
+    if (!r.read(pos, h, 8)) {
+      // A nested item must be complete. At the top level the data set may
+      // end here, but not inside an element header: with its tag readable
+      // and its VR or 16-bit length cut, GDCM asserts (found by fuzzing).
+      if (depth > 0) return Walk::TooLong;
+      return limit - pos >= 4 ? Walk::TooLong : Walk::Ok;
+    }
+    const std::uint32_t group = u16(h), element = u16(h + 2);
+    // Group 0000 (network command elements) never belongs in a file; an
+    // empty (0000,0000) without a VR sends GDCM into a re-read that asserts
+    // (found by fuzzing).
+    if (group == 0x0000) return Walk::TooLong;
     if (group == 0xFFFE) {
       if (element == 0xE00D && in_item) {  // item delimitation
         pos += 8;
@@ -148,24 +183,42 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
       // (found by fuzzing), so the file is refused here.
       return Walk::TooLong;
     }
-    if (depth == 0 && group == 0x7FE0 && element == 0x0010) return Walk::Ok;  // pixel data: GDCM stops here
+    if (depth == 0 && group == 0x7FE0 && element == 0x0010) {  // pixel data: walked over like any element
+      // (GDCM's full read goes on past it, so what follows must be sound too.)
+      const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
+      // An unknown VR here sends GDCM into a hack for one vendor's files
+      // that asserts unless the next two bytes are zero (found by fuzzing).
+      if (explicit_vr && !known_vr(vr) && (h[6] != 0 || h[7] != 0)) return Walk::TooLong;
+      // Encapsulated (undefined length) pixel data must be OB, OW or UN: GDCM asserts otherwise.
+      if (explicit_vr && long_vr(vr) && r.read(pos + 8, h + 8, 4) && u32(h + 8) == 0xFFFFFFFFu &&
+          !(vr[0] == 'O' && (vr[1] == 'B' || vr[1] == 'W')) && !(vr[0] == 'U' && vr[1] == 'N'))
+        return Walk::TooLong;
+    }
     std::uintmax_t len, head;
     bool sq = false;
     if (explicit_vr) {
       const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
-      if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1]))) {
-        len = le32(h + 4), head = 8;  // no valid VR: GDCM reads this element as implicit VR
+      if (!known_vr(vr)) {
+        // Not a VR ("BS", "L\0", ...): GDCM's recovery reads the length as
+        // 16 or 32 bits depending on its code path, so no walk can vouch for
+        // what follows (found by fuzzing: 1.1-1.3 GB allocations). Refused.
+        return Walk::TooLong;
       } else if (long_vr(vr)) {
         if (!r.read(pos + 8, h + 8, 4)) return Walk::TooLong;
-        len = le32(h + 8), head = 12;
+        len = u32(h + 8), head = 12;
       } else {
-        len = le16(h + 6), head = 8;
+        len = u16(h + 6), head = 8;
       }
       sq = vr[0] == 'S' && vr[1] == 'Q';
     } else {
-      len = le32(h + 4), head = 8;
+      len = u32(h + 4), head = 8;
     }
     pos += head;
+    // Explicit VR: only a sequence or UN may have an undefined length here
+    // (GDCM asserts on an undefined-length OB, say; found by fuzzing).
+    if (len == 0xFFFFFFFFu && explicit_vr && std::isupper(h[4]) && std::isupper(h[5]) && !sq && !(h[4] == 'U' && h[5] == 'N') &&
+        !(group == 0x7FE0 && element == 0x0010))  // encapsulated pixel data (OB/OW, checked above)
+      return Walk::TooLong;
     if (len == 0xFFFFFFFFu) {
       // Undefined length: a sequence of items up to (FFFE,E0DD). (An
       // undefined-length UN value is encoded as implicit VR.)
@@ -176,8 +229,8 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
       for (int k = 0; k < 100000; ++k) {
         unsigned char it[8];
         if (!r.read(pos, it, 8)) return Walk::TooLong;
-        if (le16(it) != 0xFFFE) return Walk::Unsure;
-        const std::uint32_t ie = le16(it + 2), il = le32(it + 4);
+        if (u16(it) != 0xFFFE) return Walk::Unsure;
+        const std::uint32_t ie = u16(it + 2), il = u32(it + 4);
         pos += 8;
         if (ie == 0xE0DD) break;  // sequence delimitation
         if (ie != 0xE000) return Walk::Unsure;
@@ -188,12 +241,12 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
           continue;
         }
         if (il == 0xFFFFFFFFu) {
-          const Walk w = walk_data_set(r, pos, inner_explicit, depth + 1, true, r.size);
+          const Walk w = walk_data_set(r, pos, inner_explicit, depth + 1, true, r.size, big);
           if (w != Walk::Ok) return w;
         } else {
           if (pos + il > r.size) return Walk::TooLong;
           std::uintmax_t p = pos;
-          const Walk w = walk_data_set(r, p, inner_explicit, depth + 1, true, pos + il);
+          const Walk w = walk_data_set(r, p, inner_explicit, depth + 1, true, pos + il, big);
           if (w != Walk::Ok) return w;
           pos += il;
         }
@@ -207,20 +260,21 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
       while (pos < end) {
         unsigned char it[8];
         if (!r.read(pos, it, 8)) return Walk::TooLong;
-        if (le16(it) != 0xFFFE || le16(it + 2) != 0xE000) return Walk::Unsure;
-        const std::uint32_t il = le32(it + 4);
+        if (u16(it) != 0xFFFE || u16(it + 2) != 0xE000) return Walk::Unsure;
+        const std::uint32_t il = u32(it + 4);
         pos += 8;
         if (il == 0xFFFFFFFFu) {
-          const Walk w = walk_data_set(r, pos, explicit_vr, depth + 1, true, end);
+          const Walk w = walk_data_set(r, pos, explicit_vr, depth + 1, true, end, big);
           if (w != Walk::Ok) return w;
         } else {
           if (pos + il > end) return Walk::TooLong;
           std::uintmax_t p = pos;
-          const Walk w = walk_data_set(r, p, explicit_vr, depth + 1, true, pos + il);
+          const Walk w = walk_data_set(r, p, explicit_vr, depth + 1, true, pos + il, big);
           if (w != Walk::Ok) return w;
           pos += il;
         }
       }
+      if (pos > end) return Walk::TooLong;
       continue;
     }
     pos += len;
@@ -239,8 +293,12 @@ bool structure_ok(const std::string& file, std::uintmax_t size) {
   unsigned char magic[4];
   std::uintmax_t pos = 0;
   std::string ts;
+  bool big_start = false;  // no meta group and a big-endian first tag: GDCM reads it big endian
   if (r.read(128, magic, 4) && std::memcmp(magic, "DICM", 4) == 0) {
     if (!walk_meta_group(r, 132, &pos, &ts)) return false;
+    // "DICM" promises a file meta group; without one GDCM guesses the byte
+    // order (found by fuzzing: read big endian, a 1 GB allocation).
+    if (pos == 132) return false;
   } else {
     // No preamble: only a data set that starts with a group 0008 tag (little
     // or big endian) or a little-endian file meta group goes to GDCM;
@@ -248,6 +306,7 @@ bool structure_ok(const std::string& file, std::uintmax_t size) {
     unsigned char b[2];
     if (size < 8 || !r.read(0, b, 2)) return false;
     const unsigned le = le16(b), be = (b[0] << 8) | b[1];
+    big_start = be == 0x0008 && le != 0x0008;
     if (le == 0x0002) {
       if (!walk_meta_group(r, 0, &pos, &ts)) return false;
     } else if (!(le == 0x0008 || be == 0x0008)) {
@@ -257,7 +316,17 @@ bool structure_ok(const std::string& file, std::uintmax_t size) {
   // The data set: little endian implicit (1.2.840.10008.1.2, also the default
   // without a meta group) or explicit (everything else but big endian and
   // deflate, which GDCM checks itself).
-  if (ts == "1.2.840.10008.1.2.2" || ts == "1.2.840.10008.1.2.1.99") return true;
+  if (ts == "1.2.840.10008.1.2.1.99") return true;  // deflated: GDCM inflates and checks it
+  if (ts == "1.2.840.10008.1.2.2") {
+    // GDCM reads a "big endian" data set that does not start like one (group
+    // 0008 in big-endian order) as little endian, guessing VRs per element,
+    // so no single walk can vouch for it: refused (found by fuzzing: a 3 GB
+    // allocation).
+    unsigned char g[2];
+    if (!r.read(pos, g, 2) || ((g[0] << 8) | g[1]) != 0x0008) return false;
+    return walk_data_set(r, pos, true, 0, false, size, true) != Walk::TooLong;
+  }
+  if (ts.empty() && big_start) return walk_data_set(r, pos, true, 0, false, size, true) != Walk::TooLong;
   unsigned char first[6];
   bool explicit_vr = ts.empty() ? false : ts != "1.2.840.10008.1.2";
   if (ts.empty() && r.read(pos, first, 6))  // no meta group: look at the first element

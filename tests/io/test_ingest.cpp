@@ -366,14 +366,75 @@ TEST(Ingest, SafeToParseRejectsWhatGdcmCannotTake) {
   // A declared length past the end of the file.
   EXPECT_FALSE(ms::io::dicom::safe_to_parse(
       write("long.dcm", meta + element(0x0008, 0x0060, "CS", "CT") + element(0x0009, 0x1010, "OB", std::string(64, 'x'), 0xff000000u))));
+  // A file meta element with a VR GDCM does not know (found by fuzzing).
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(write(
+      "badvr.dcm", ms::testing::preamble() + element(0x0002, 0x0002, "UK", std::string("1.2.840.10008.5.1.4.1.1.2\0", 26)) +
+                       element(0x0002, 0x0010, "UI", std::string("1.2.840.10008.1.2.1\0", 20)) + element(0x0008, 0x0060, "CS", "CT"))));
   // The file meta group cut inside an element, at every byte.
   for (std::size_t cut = 133; cut < meta.size(); ++cut)
     EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("cut.dcm", meta.substr(0, cut)))) << cut;
+  // The data set cut inside its last element's header (tag read, VR or
+  // 16-bit length missing: GDCM asserted, found by fuzzing); a clean end is fine.
+  const std::string body = meta + element(0x0008, 0x0060, "CS", "CT") + element(0x0008, 0x0070, "LO", "ACME");
+  EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("whole.dcm", body)));
+  for (std::size_t keep = 4; keep < 8; ++keep)
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("cuthdr.dcm", body.substr(0, body.size() - 12 + keep)))) << keep;
+  // An undefined length on an element that is neither a sequence nor UN
+  // (found by fuzzing: GDCM asserts).
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("undef.dcm", meta + element(0x0008, 0x0060, "CS", "CT") +
+                                                                     element(0x0009, 0x1010, "OB", "", 0xffffffffu))));
+  // An item whose content (an undefined-length sequence) runs past its
+  // declared length (found by fuzzing: GDCM's fallback reader asserts).
+  {
+    const std::string inner = element(0x0020, 0x9116, "SQ", "", 0xffffffffu) + std::string("\xfe\xff\x00\xe0\xff\xff\xff\xff", 8) +
+                              element(0x0020, 0x0037, "DS", "1\\0\\0\\0\\1\\0 ") + std::string("\xfe\xff\x0d\xe0\0\0\0\0", 8) +
+                              std::string("\xfe\xff\xdd\xe0\0\0\0\0", 8);
+    std::string item = std::string("\xfe\xff\x00\xe0", 4) + std::string("\x15\0\0\0", 4) + inner;  // declares 21 bytes
+    const std::string seq = element(0x5200, 0x9229, "SQ", "", 0xffffffffu) + item + std::string("\xfe\xff\xdd\xe0\0\0\0\0", 8);
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("overrun.dcm", meta + element(0x0008, 0x0060, "CS", "CT") + seq)));
+    // The same item with its true length is fine.
+    item = std::string("\xfe\xff\x00\xe0", 4) + std::string(1, static_cast<char>(inner.size())) + std::string("\0\0\0", 3) + inner;
+    EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("fits.dcm", meta + element(0x0008, 0x0060, "CS", "CT") +
+                                                                   element(0x5200, 0x9229, "SQ", "", 0xffffffffu) + item +
+                                                                   std::string("\xfe\xff\xdd\xe0\0\0\0\0", 8))));
+  }
+  // Explicit VR big endian (retired, still met): walked in its byte order.
+  {
+    auto be = [](std::uint16_t g, std::uint16_t e, const char* vr, const std::string& v) {
+      std::string x{static_cast<char>(g >> 8), static_cast<char>(g & 0xff), static_cast<char>(e >> 8), static_cast<char>(e & 0xff), vr[0], vr[1]};
+      if (std::string(vr) == "OB") {
+        x += std::string(2, '\0');
+        for (int k = 3; k >= 0; --k) x += static_cast<char>((v.size() >> (8 * k)) & 0xff);
+      } else {
+        x += static_cast<char>(v.size() >> 8);
+        x += static_cast<char>(v.size() & 0xff);
+      }
+      return x + v;
+    };
+    const std::string bmeta = ms::testing::preamble() + element(0x0002, 0x0010, "UI", std::string("1.2.840.10008.1.2.2\0", 20));
+    const std::string bbody = bmeta + be(0x0008, 0x0060, "CS", "CT") + be(0x0009, 0x1010, "OB", std::string(64, 'x'));
+    EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("big.dcm", bbody)));
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("bigcut.dcm", bbody.substr(0, bbody.size() - 64 - 12 + 6)))) << "header cut";
+    std::string bad = bbody;
+    bad[bad.size() - 64 - 4] = '\x7f';  // the OB's big-endian length now ~2 GB
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("biglong.dcm", bad)));
+  }
+  // Two letters that are not a VR (found by fuzzing: GDCM's recovery read a
+  // 1.3 GB length).
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("notvr.dcm", meta + element(0x0008, 0x0060, "CS", "CT") +
+                                                                     element(0x0028, 0xfffb, "BS", "MONOCHROME2 "))));
+  // "DICM" followed by no file meta group (found by fuzzing: GDCM guessed big endian).
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("nometa.dcm", ms::testing::preamble() + element(0x0101, 0x0000, "UL", std::string("\xf0\0\0\0", 4)) +
+                                                                     element(0x0008, 0x0060, "CS", "CT"))));
+  // A command-group element in a file (found by fuzzing: (0000,0000) without
+  // a VR made GDCM re-read the file and assert).
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(
+      write("group0.dcm", meta + element(0x0008, 0x0060, "CS", "CT") + std::string(8, '\0') + element(0x0008, 0x0070, "LO", "ACME"))));
   // A sequence delimiter where an element belongs.
   EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("delim.dcm", meta + element(0x0008, 0x0060, "CS", "CT") +
                                                                      std::string("\xfe\xff\xdd\xe0\0\0\0\0", 8))));
   // No preamble: a data set may start with group 0008, arbitrary bytes may not.
-  EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("bare.dcm", element(0x0008, 0x0060, "CS", "CT") + std::string(16, '\0'))));
+  EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("bare.dcm", element(0x0008, 0x0060, "CS", "CT") + element(0x0008, 0x0070, "LO", "ACME SCANNERS"))));
   EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("junk.dcm", std::string("%PDF-1.4 not a scan at all"))));
   fs::remove_all(dir);
 }
