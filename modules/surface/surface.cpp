@@ -6,8 +6,6 @@
 #include <vtkDoubleArray.h>
 #include <vtkFlyingEdges3D.h>
 #include <vtkImageData.h>
-#include <vtkImageContinuousDilate3D.h>
-#include <vtkImageContinuousErode3D.h>
 #include <vtkImageGaussianSmooth.h>
 #include <vtkIntArray.h>
 #include <vtkPLYWriter.h>
@@ -25,6 +23,7 @@
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
+#include <vector>
 
 #include "core/error.h"
 
@@ -117,6 +116,90 @@ static void finish(Result& r, const Options& opt) {
 
 // Flying-edges surface (after the optional closing and decimation) in LPS,
 // measured, before CGAL repair.
+// Squared Euclidean distance transform along one line (Felzenszwalb &
+// Huttenlocher's lower envelope of parabolas): d[i] = min_q ((i - q) s)^2 + f[q].
+static void edt_line(const float* f, float* d, int n, float s, std::vector<int>& v, std::vector<float>& z) {
+  constexpr float kInf = 1e20f;
+  v.resize(static_cast<std::size_t>(n));
+  z.resize(static_cast<std::size_t>(n) + 1);
+  int k = -1;
+  for (int q = 0; q < n; ++q) {
+    if (!(f[q] < kInf)) continue;
+    const float xq = q * s;
+    while (k >= 0) {
+      const float xv = v[static_cast<std::size_t>(k)] * s;
+      const float cut = ((f[q] + xq * xq) - (f[v[static_cast<std::size_t>(k)]] + xv * xv)) / (2 * (xq - xv));
+      if (cut > z[static_cast<std::size_t>(k)]) {
+        ++k;
+        v[static_cast<std::size_t>(k)] = q;
+        z[static_cast<std::size_t>(k)] = cut;
+        z[static_cast<std::size_t>(k) + 1] = kInf;
+        break;
+      }
+      --k;
+    }
+    if (k < 0) {
+      k = 0;
+      v[0] = q;
+      z[0] = -kInf;
+      z[1] = kInf;
+    }
+  }
+  if (k < 0) {  // no feature on this line
+    std::fill(d, d + n, kInf);
+    return;
+  }
+  int j = 0;
+  for (int q = 0; q < n; ++q) {
+    const float x = q * s;
+    while (z[static_cast<std::size_t>(j) + 1] < x) ++j;
+    const float dx = x - v[static_cast<std::size_t>(j)] * s;
+    d[q] = dx * dx + f[v[static_cast<std::size_t>(j)]];
+  }
+}
+
+// Squared distance (mm^2) of every voxel to the nearest voxel where feature
+// is true, exact, separable over the three axes (OpenMP over lines).
+static std::vector<float> squared_edt(const std::vector<char>& feature, const int dims[3], const double spacing[3]) {
+  constexpr float kInf = 1e20f;
+  const std::size_t n = feature.size();
+  std::vector<float> d(n);
+  for (std::size_t i = 0; i < n; ++i) d[i] = feature[i] ? 0.0f : kInf;
+  const long stride[3] = {1, dims[0], static_cast<long>(dims[0]) * dims[1]};
+  for (int a = 0; a < 3; ++a) {
+    const int b = (a + 1) % 3, c = (a + 2) % 3, len = dims[a];
+    const long lines = static_cast<long>(dims[b]) * dims[c];
+#pragma omp parallel
+    {
+      std::vector<float> in(static_cast<std::size_t>(len)), out(static_cast<std::size_t>(len)), z;
+      std::vector<int> v;
+#pragma omp for schedule(static)
+      for (long l = 0; l < lines; ++l) {
+        const long ib = l % dims[b], ic = l / dims[b];
+        const long base = ib * stride[b] + ic * stride[c];
+        for (int i = 0; i < len; ++i) in[static_cast<std::size_t>(i)] = d[static_cast<std::size_t>(base + i * stride[a])];
+        edt_line(in.data(), out.data(), len, static_cast<float>(spacing[a]), v, z);
+        for (int i = 0; i < len; ++i) d[static_cast<std::size_t>(base + i * stride[a])] = out[static_cast<std::size_t>(i)];
+      }
+    }
+  }
+  return d;
+}
+
+// Binary closing of a 0/1 image by a ball of radius r mm (dilation: within
+// r of the mask; erosion: farther than r from outside the dilation), through
+// two exact distance transforms: linear in the voxels whatever r.
+static void close_binary(float* buf, const int dims[3], const double spacing[3], double r) {
+  const std::size_t n = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
+  const float r2 = static_cast<float>(r * r);
+  std::vector<char> f(n);
+  for (std::size_t i = 0; i < n; ++i) f[i] = buf[i] > 0.5f;
+  const auto to_mask = squared_edt(f, dims, spacing);
+  for (std::size_t i = 0; i < n; ++i) f[i] = !(to_mask[i] <= r2);  // outside the dilation
+  const auto to_outside = squared_edt(f, dims, spacing);
+  for (std::size_t i = 0; i < n; ++i) buf[i] = to_outside[i] > r2 ? 1.0f : 0.0f;
+}
+
 static Result raw_mesh(const Mask& mask, const Options& opt) {
   const Geometry& g = mask.geom;
   // Crop to the mask's bounding box plus a margin of empty voxels so the
@@ -150,21 +233,11 @@ static Result raw_mesh(const Mask& mask, const Options& opt) {
         if (mask.data[g.linear(i, j, k)])
           buf[(i - lo[0] + pad) + dims[0] * ((j - lo[1] + pad) + static_cast<long>(dims[1]) * (k - lo[2] + pad))] = 1.0f;
 
+  // Morphological closing by a ball of this radius (mm): fills the narrow
+  // gaps that make handles, e.g. between teeth in contact.
+  if (opt.close_handles_mm > 0) close_binary(buf, dims, g.spacing.data(), opt.close_handles_mm);
   auto smooth = Ptr<vtkImageGaussianSmooth>::New();
   smooth->SetInputData(img);
-  if (opt.close_handles_mm > 0) {
-    // Morphological closing (ellipsoidal kernel of this radius in mm): fills
-    // the narrow gaps that make handles, e.g. between teeth in contact.
-    int ks[3];
-    for (int a = 0; a < 3; ++a) ks[a] = 2 * static_cast<int>(std::floor(opt.close_handles_mm / g.spacing[a])) + 1;
-    auto dil = Ptr<vtkImageContinuousDilate3D>::New();
-    dil->SetInputData(img);
-    dil->SetKernelSize(ks[0], ks[1], ks[2]);
-    auto ero = Ptr<vtkImageContinuousErode3D>::New();
-    ero->SetInputConnection(dil->GetOutputPort());
-    ero->SetKernelSize(ks[0], ks[1], ks[2]);
-    smooth->SetInputConnection(ero->GetOutputPort());
-  }
   smooth->SetDimensionality(3);
   smooth->SetStandardDeviations(opt.smoothing_sigma_mm / g.spacing[0], opt.smoothing_sigma_mm / g.spacing[1],
                                 opt.smoothing_sigma_mm / g.spacing[2]);
