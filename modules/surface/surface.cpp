@@ -305,6 +305,17 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   return r;
 }
 
+Mask closed(const Mask& mask, double radius_mm) {
+  const Geometry& g = mask.geom;
+  const int dims[3] = {static_cast<int>(g.size[0]), static_cast<int>(g.size[1]), static_cast<int>(g.size[2])};
+  std::vector<float> buf(mask.data.size());
+  for (std::size_t i = 0; i < buf.size(); ++i) buf[i] = mask.data[i] ? 1.0f : 0.0f;
+  if (radius_mm > 0 && !buf.empty()) close_binary(buf.data(), dims, g.spacing.data(), radius_mm);
+  Mask out{g, std::vector<std::uint8_t>(buf.size())};
+  for (std::size_t i = 0; i < buf.size(); ++i) out.data[i] = buf[i] > 0.5f;
+  return out;
+}
+
 void write_vtp(const Mesh& mesh, const PointArrays& arrays, const std::string& path) {
   auto pd = to_polydata(mesh);
   for (const auto& [name, values] : arrays) {

@@ -66,6 +66,13 @@ Result mesh_from_mask(const Mask& mask, const Options& options = {});
 // Topology and measures of a mesh (signed volume: positive when outward).
 MeshStats measure(const Mesh& mesh);
 
+// Binary closing of a mask by a ball of radius_mm (Euclidean, in mm, voxel
+// centres): dilation = voxels within radius_mm of the mask, then erosion =
+// voxels farther than radius_mm from every voxel outside the dilation (only
+// voxels of the grid count). Two exact distance transforms, linear in the
+// voxels whatever the radius. What --close-handles applies before meshing.
+Mask closed(const Mask& mask, double radius_mm);
+
 // Per-vertex arrays written into the VTP (name -> one value per vertex).
 using PointArrays = std::map<std::string, std::vector<double>>;
 void write_vtp(const Mesh& mesh, const PointArrays& arrays, const std::string& path);

@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -475,4 +477,52 @@ TEST(Surface, AutoClosingRemovesANarrowHandleAndKeepsAWideOne) {
   ms::surface::Options fixed = o;
   fixed.close_handles_mm = 3;
   EXPECT_EQ(ms::surface::mesh_from_mask(pierced_block(2), fixed).closing_mm, 3.0);
+}
+
+TEST(Surface, ClosingByDistanceTransformsEqualsTheBallClosing) {
+  // Random blobs on a small anisotropic grid: the closing through two exact
+  // distance transforms equals the brute-force closing by the Euclidean ball
+  // (dilation, then erosion, counting only voxels of the grid).
+  ms::Mask m;
+  m.geom.size = {22, 19, 15};
+  m.geom.spacing = {0.7, 0.9, 1.3};
+  m.data.assign(m.geom.voxel_count(), 0);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> ux(0, 21), uy(0, 18), uz(0, 14);
+  for (int k = 0; k < 40; ++k) m.data[m.geom.linear(ux(rng), uy(rng), uz(rng))] = 1;
+  // Radii off every voxel distance of this grid (no ties at the boundary).
+  for (const double r : {1.05, 2.05, 2.75}) {
+    const auto fast = ms::surface::closed(m, r);
+    const auto& g = m.geom;
+    auto mm = [&](std::size_t a, std::size_t b, double s) { return (static_cast<double>(a) - static_cast<double>(b)) * s; };
+    auto within = [&](std::size_t i, std::size_t j, std::size_t k, std::size_t x, std::size_t y, std::size_t z) {
+      const double dx = mm(i, x, g.spacing[0]), dy = mm(j, y, g.spacing[1]), dz = mm(k, z, g.spacing[2]);
+      return dx * dx + dy * dy + dz * dz <= r * r;
+    };
+    std::vector<std::uint8_t> dil(g.voxel_count(), 0);
+    for (std::size_t k = 0; k < g.size[2]; ++k)
+      for (std::size_t j = 0; j < g.size[1]; ++j)
+        for (std::size_t i = 0; i < g.size[0]; ++i)
+          for (std::size_t z = 0; z < g.size[2] && !dil[g.linear(i, j, k)]; ++z)
+            for (std::size_t y = 0; y < g.size[1] && !dil[g.linear(i, j, k)]; ++y)
+              for (std::size_t x = 0; x < g.size[0]; ++x)
+                if (m.data[g.linear(x, y, z)] && within(i, j, k, x, y, z)) {
+                  dil[g.linear(i, j, k)] = 1;
+                  break;
+                }
+    std::size_t differ = 0, set = 0;
+    for (std::size_t k = 0; k < g.size[2]; ++k)
+      for (std::size_t j = 0; j < g.size[1]; ++j)
+        for (std::size_t i = 0; i < g.size[0]; ++i) {
+          bool keep = true;
+          for (std::size_t z = 0; z < g.size[2] && keep; ++z)
+            for (std::size_t y = 0; y < g.size[1] && keep; ++y)
+              for (std::size_t x = 0; x < g.size[0] && keep; ++x)
+                if (!dil[g.linear(x, y, z)] && within(i, j, k, x, y, z)) keep = false;
+          differ += keep != (fast.data[g.linear(i, j, k)] != 0);
+          set += keep;
+        }
+    EXPECT_EQ(differ, 0u) << "r " << r;
+    if (r > 2.5) EXPECT_GT(set, 40u);  // the closing joined seeds: more voxels than it was given
+  }
 }
