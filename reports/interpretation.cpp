@@ -169,19 +169,33 @@ std::vector<Interpretation> interpret(const InterpretationInputs& in) {
     x.sources = {"habets1988", "pintowong2024"};
     out.push_back(x);
   }
-  {  // Menton deviation from the mandible's own symmetry plane.
+  {  // Menton deviation: from the cranial mid-sagittal plane when there is one.
     Interpretation x;
     x.key = "menton_deviation";
-    x.title = "Menton deviation from the plane";
     const double d = in.menton_to_plane_mm;
     x.value_text = std::isfinite(d) ? fixed(std::abs(d), 2) + " mm" : "n/a";
-    x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the mandible's symmetry plane" : "menton not found";
     x.banded_value = std::isfinite(d) ? std::abs(d) : kNaN;
     x.band = classify(x.banded_value, kMentonThresholds);
-    x.meaning =
-        "Lateral distance of menton (lowest point of the chin) from the symmetry plane. The plane is fitted to the "
-        "mandible itself, not to the cranial base or face as in the cited studies, so this underestimates a chin "
-        "deviation that the whole mandible shares.";
+    if (in.menton_plane_cranial) {
+      x.title = "Menton deviation from the cranial midline";
+      x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the cranial mid-sagittal plane" +
+                                        (std::isfinite(in.menton_to_mandible_plane_mm)
+                                             ? "; " + fixed(std::abs(in.menton_to_mandible_plane_mm), 2) +
+                                                   " mm from the mandible's own plane"
+                                             : std::string())
+                                  : "menton not found";
+      x.meaning =
+          "Lateral distance of menton (lowest point of the chin) from the mirror plane of the skull above the "
+          "condyles: the chin's total deviation, as the cited studies measure it against the facial midline. The "
+          "mandible's own plane leans with a deformed mandible and would understate it.";
+    } else {
+      x.title = "Menton deviation from the plane";
+      x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the mandible's symmetry plane" : "menton not found";
+      x.meaning =
+          "Lateral distance of menton (lowest point of the chin) from the symmetry plane. The plane is fitted to the "
+          "mandible itself (the scan holds too little skull for a cranial plane), not to the cranial base or face as "
+          "in the cited studies, so this underestimates a chin deviation that the whole mandible shares.";
+    }
     x.thresholds =
         "below 2 mm typical; 2-4 mm mild (noticed by orthodontists); 4 mm and above marked (the threshold at which "
         "orthodontists judge treatment needed, mean 4.28 mm, and the usual definition of an asymmetric group).";
@@ -218,7 +232,14 @@ InterpretationInputs interpretation_inputs(const RunSummary& s) {
   side("ramus_height_mm", in.ramus_L_mm, in.ramus_R_mm);
   side("gonial_angle_deg", in.gonial_L_deg, in.gonial_R_deg);
   side("body_length_mm", in.body_L_mm, in.body_R_mm);
-  if (const Vec3* me = s.landmarks.landmarks.find("Me")) in.menton_to_plane_mm = s.reference.plane.signed_distance(*me);
+  if (const Vec3* me = s.landmarks.landmarks.find("Me")) {
+    in.menton_to_mandible_plane_mm = s.reference.plane.signed_distance(*me);
+    in.menton_to_plane_mm = in.menton_to_mandible_plane_mm;
+    if (s.cranial.found) {
+      in.menton_to_plane_mm = s.cranial.plane.signed_distance(*me);
+      in.menton_plane_cranial = true;
+    }
+  }
   return in;
 }
 

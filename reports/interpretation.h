@@ -49,6 +49,11 @@ struct InterpretationInputs {
   double mirror_rms_mm = kNaN, mirror_p95_mm = kNaN;
   double ramus_L_mm = kNaN, ramus_R_mm = kNaN;   // |Co-Go|
   double menton_to_plane_mm = kNaN;              // signed, + toward the patient's left
+  // The plane menton_to_plane_mm is measured from: the cranial mid-sagittal
+  // plane when the scan holds the skull (closer to the cited studies' facial
+  // midline), else the mandible's own symmetry plane.
+  bool menton_plane_cranial = false;
+  double menton_to_mandible_plane_mm = kNaN;     // always the mandible's own plane
   double gonial_L_deg = kNaN, gonial_R_deg = kNaN;
   double body_L_mm = kNaN, body_R_mm = kNaN;     // |Go-Me|
 };

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <set>
 
@@ -134,6 +136,20 @@ TEST(Interpretation, InputsFromARun) {
   EXPECT_DOUBLE_EQ(in.gonial_R_deg, 118.0);
   EXPECT_DOUBLE_EQ(in.menton_to_plane_mm, 2.0);
   EXPECT_TRUE(std::isnan(in.body_L_mm));  // not measured
+
+  EXPECT_FALSE(in.menton_plane_cranial);
+  // With a cranial mid-sagittal plane, menton is measured from it.
+  s.cranial.found = true;
+  s.cranial.plane.point = {-2.0, 0.0, 0.0};
+  s.cranial.plane.normal = {1.0, 0.0, 0.0};
+  const auto inc = interpretation_inputs(s);
+  EXPECT_TRUE(inc.menton_plane_cranial);
+  EXPECT_DOUBLE_EQ(inc.menton_to_plane_mm, 5.0);
+  EXPECT_DOUBLE_EQ(inc.menton_to_mandible_plane_mm, 2.0);
+  const auto cards = interpret(inc);
+  const auto& me = *std::find_if(cards.begin(), cards.end(), [](const auto& x) { return x.key == "menton_deviation"; });
+  EXPECT_EQ(me.band, Band::Marked);  // 5 mm against the skull, though 2 mm against the mandible's own plane
+  EXPECT_NE(me.title.find("cranial"), std::string::npos);
 
   RunSummary empty;
   empty.saf.score = -1;  // not computed
