@@ -64,13 +64,23 @@ LandmarkSet saf_anchors(const LandmarkSet& detected, const LandmarkSet& referenc
 SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane& plane, const SafOptions& opt) {
   SafResult r;
   const std::size_t nf = mesh.faces.size();
-  const geometry::ClosestPointIndex index(mesh);
+  // The closest-point tree and the Laplacian are independent: built side by side.
+  std::unique_ptr<geometry::ClosestPointIndex> index_ptr;
+  std::unique_ptr<HarmonicFieldSolver> solver_ptr;
+#pragma omp parallel sections
+  {
+#pragma omp section
+    index_ptr = std::make_unique<geometry::ClosestPointIndex>(mesh);
+#pragma omp section
+    solver_ptr = std::make_unique<HarmonicFieldSolver>(mesh, opt.disk_radius_mm);
+  }
+  const geometry::ClosestPointIndex& index = *index_ptr;
+  HarmonicFieldSolver& solver = *solver_ptr;
   // Disk centres: the anchors projected onto the surface (the symmetric
   // reference configuration lies off the surface where the mandible is asymmetric).
   LandmarkSet lm;
   for (const auto& [name, p] : anchors.points) lm.set(name, index.closest(p).point);
   r.disk_centres = lm;
-  HarmonicFieldSolver solver(mesh, opt.disk_radius_mm);
   std::map<std::pair<std::string, std::string>, std::vector<Vec3>> grads;
   auto gradient = [&](const std::string& a, const std::string& b) -> const std::vector<Vec3>& {
     auto& g = grads[{a, b}];
