@@ -102,7 +102,8 @@ RansacResult ransac_rigid(const std::vector<Vec3>& src, const std::vector<Vec3>&
 
 namespace {
 
-// The faces of mesh whose three vertices are within radius of c, reindexed.
+// The faces of mesh whose three vertices are within radius of c, reindexed;
+// original (optional) receives the source index of every patch vertex.
 Mesh patch(const Mesh& mesh, const Vec3& c, double radius, std::vector<int>* original = nullptr) {
   Mesh out;
   std::vector<int> map(mesh.vertices.size(), -1);
@@ -157,10 +158,10 @@ std::vector<LandmarkTransfer> transfer_landmarks(const Mesh& source, const Landm
     LandmarkTransfer t;
     t.name = name;
     if (const Vec3* d = target_landmarks.find(name)) t.detected = true, t.detected_point = *d;
-    // Source keypoints: a random sample of the patch around the landmark.
+    // The patch around the landmark (registered by ICP below); its keypoints
+    // are a random sample of its vertices.
     std::vector<int> src_pts;
-    for (std::size_t v = 0; v < source.vertices.size(); ++v)
-      if (distance(source.vertices[v], L) <= opt.patch_radius_mm) src_pts.push_back(static_cast<int>(v));
+    const Mesh p = patch(source, L, opt.patch_radius_mm, &src_pts);
     std::shuffle(src_pts.begin(), src_pts.end(), rng);
     if (src_pts.size() > static_cast<std::size_t>(opt.patch_features)) src_pts.resize(static_cast<std::size_t>(opt.patch_features));
     // Target candidates: the sampled vertices near where the global
@@ -198,7 +199,6 @@ std::vector<LandmarkTransfer> transfer_landmarks(const Mesh& source, const Landm
       continue;
     }
     // Refine the patch on the target surface.
-    const Mesh p = patch(source, L, opt.patch_radius_mm);
     const auto icp = reference::align_rigid_from(p, target_index, target_normals, rs.transform, 20, 0.5);
     std::size_t close = 0;
     for (const auto& v : p.vertices)
