@@ -11,6 +11,7 @@
 
 #include "bench/fixtures.h"
 #include "bench/registry.h"
+#include "core/distance_transform.h"
 #include "io/volume_io.h"
 #include "reports/figures.h"
 #include "segmentation/segmentation.h"
@@ -36,6 +37,19 @@ void segment(benchmark::State& state, double spacing_mm) {
   }
   state.counters[kVoxelsCounter] = static_cast<double>(ct.geom.voxel_count());
   state.counters["mask_voxels"] = static_cast<double>(r.voxels);
+}
+
+// The segmentation's distance kernel: depth inside the bone mask (HU >= 250)
+// of the whole head, an exact Euclidean transform.
+void bone_depth(benchmark::State& state, double spacing_mm) {
+  const Volume& ct = head_phantom(spacing_mm).ct;
+  std::vector<std::uint8_t> bone(ct.hu.size());
+  for (std::size_t i = 0; i < bone.size(); ++i) bone[i] = ct.hu[i] >= 250.0f;
+  for (auto _ : state) {
+    const auto d = depth_inside(bone.data(), ct.geom.size, ct.geom.spacing);
+    benchmark::DoNotOptimize(d.data());
+  }
+  state.counters[kVoxelsCounter] = static_cast<double>(ct.geom.voxel_count());
 }
 
 void qc_slices(benchmark::State& state, double spacing_mm) {
@@ -67,6 +81,10 @@ const std::vector<double>& volume_spacings_mm() {
 void register_volume_kernels() {
   for (double mm : volume_spacings_mm())
     benchmark::RegisterBenchmark(("segmentation/segment_mandible/" + spacing_label(mm)).c_str(), segment, mm)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
+  for (double mm : volume_spacings_mm())
+    benchmark::RegisterBenchmark(("segmentation/bone_depth_edt/" + spacing_label(mm)).c_str(), bone_depth, mm)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
   for (double mm : volume_spacings_mm())

@@ -1,18 +1,14 @@
 // ITK-facing translation unit: no system Eigen here (ENGINEERING.md).
 #include "segmentation/segmentation.h"
 
-#include <itkBinaryBallStructuringElement.h>
 #include <itkBinaryFillholeImageFilter.h>
-#include <itkBinaryMorphologicalClosingImageFilter.h>
-#include <itkBinaryMorphologicalOpeningImageFilter.h>
 #include <itkConnectedComponentImageFilter.h>
 #include <itkImage.h>
-#include <itkMorphologicalWatershedFromMarkersImageFilter.h>
 #include <itkRegionOfInterestImageFilter.h>
 #include <itkRelabelComponentImageFilter.h>
-#include <itkSignedMaurerDistanceMapImageFilter.h>
 
 #include <algorithm>
+#include <chrono>
 #include <map>
 #include <cmath>
 #include <limits>
@@ -20,6 +16,7 @@
 #include <cstdlib>
 #include <set>
 
+#include "core/distance_transform.h"
 #include "core/error.h"
 #include "io/itk_geometry.h"
 
@@ -58,6 +55,18 @@ bool touches_border(const Mask& m) {
 namespace {
 
 using FloatImage = itk::Image<float, 3>;
+
+// MANDISYM_DEBUG_SEG=1: time of each step on stderr (profiling aid).
+struct DebugLap {
+  bool on = std::getenv("MANDISYM_DEBUG_SEG") != nullptr;
+  std::chrono::steady_clock::time_point t = std::chrono::steady_clock::now();
+  void operator()(const char* step) {
+    if (!on) return;
+    const auto now = std::chrono::steady_clock::now();
+    std::fprintf(stderr, "  seg %-22s %6.2f s\n", step, std::chrono::duration<double>(now - t).count());
+    t = now;
+  }
+};
 
 // Calibration offset: the soft-tissue peak of the histogram (expected near
 // 40 HU) within [-60, 160] HU. Returns 0 when there is no usable peak.
@@ -155,6 +164,112 @@ typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionTy
   return roi->GetOutput();
 }
 
+// A sub-box of a grid: the voxels of a mask with a margin, where local work
+// (morphology, distances to the mask) needs to be done.
+struct Box {
+  std::array<std::size_t, 3> lo{0, 0, 0};
+  Dims3 size{0, 0, 0};
+  std::size_t to_grid(std::size_t c, const Dims3& dims) const {  // box linear index -> grid linear index
+    const std::size_t i = c % size[0], j = (c / size[0]) % size[1], k = c / (size[0] * size[1]);
+    return (i + lo[0]) + dims[0] * ((j + lo[1]) + dims[1] * (k + lo[2]));
+  }
+};
+
+// Bounding box of the set voxels grown by pad, clipped to the grid (empty mask: empty box).
+Box bounding_box(const std::uint8_t* m, const Dims3& dims, std::size_t pad) {
+  std::array<std::size_t, 3> lo{dims[0], dims[1], dims[2]}, hi{0, 0, 0};
+  bool any = false;
+  for (std::size_t k = 0; k < dims[2]; ++k)
+    for (std::size_t j = 0; j < dims[1]; ++j) {
+      const std::uint8_t* row = m + dims[0] * (j + dims[1] * k);
+      for (std::size_t i = 0; i < dims[0]; ++i)
+        if (row[i]) {
+          const std::size_t v[3] = {i, j, k};
+          for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], v[a]), hi[a] = std::max(hi[a], v[a]);
+          any = true;
+        }
+    }
+  Box b;
+  if (!any) return b;
+  for (int a = 0; a < 3; ++a) {
+    b.lo[a] = lo[a] > pad ? lo[a] - pad : 0;
+    b.size[a] = std::min(dims[a] - 1, hi[a] + pad) - b.lo[a] + 1;
+  }
+  return b;
+}
+
+// The box's part of a grid's values, and back.
+template <class T>
+std::vector<T> extract(const T* grid, const Dims3& dims, const Box& b) {
+  std::vector<T> out(b.size[0] * b.size[1] * b.size[2]);
+  for (std::size_t k = 0; k < b.size[2]; ++k)
+    for (std::size_t j = 0; j < b.size[1]; ++j)
+      std::copy_n(grid + b.lo[0] + dims[0] * ((j + b.lo[1]) + dims[1] * (k + b.lo[2])), b.size[0],
+                  out.data() + b.size[0] * (j + b.size[1] * k));
+  return out;
+}
+template <class T>
+void insert(const std::vector<T>& part, const Box& b, T* grid, const Dims3& dims) {
+  for (std::size_t k = 0; k < b.size[2]; ++k)
+    for (std::size_t j = 0; j < b.size[1]; ++j)
+      std::copy_n(part.data() + b.size[0] * (j + b.size[1] * k), b.size[0],
+                  grid + b.lo[0] + dims[0] * ((j + b.lo[1]) + dims[1] * (k + b.lo[2])));
+}
+
+// Marker-controlled watershed by priority flooding (Meyer; the flooding of
+// ITK's MorphologicalWatershedFromMarkersImageFilter without watershed lines,
+// face-connected), restricted to the voxels where inside is set: the voxels
+// next to a marker enter a hierarchical queue at their level; the lowest is
+// taken and its unlabelled neighbours take its label, entering the queue at
+// their own level or, when lower, at the current one (first in, first out
+// within a level). Levels are quantised to 2^16 steps over their range. Voxels
+// outside `inside` and not reached keep label 0. Linear in the voxels flooded.
+std::vector<unsigned> watershed_from_markers(const std::vector<float>& level, const std::uint8_t* inside,
+                                             const unsigned* markers, const Geometry& g) {
+  const std::size_t n = g.voxel_count();
+  std::vector<unsigned> label(markers, markers + n);
+  float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
+  for (std::size_t i = 0; i < n; ++i)
+    if (inside[i]) lo = std::min(lo, level[i]), hi = std::max(hi, level[i]);
+  if (!(lo <= hi)) return label;
+  constexpr std::size_t kLevels = 1u << 16;
+  const double scale = hi > lo ? (kLevels - 1) / (static_cast<double>(hi) - lo) : 0.0;
+  auto bucket = [&](std::size_t i) { return static_cast<std::size_t>((static_cast<double>(level[i]) - lo) * scale + 0.5); };
+  std::vector<std::vector<std::size_t>> queue(kLevels);
+  const long nx = static_cast<long>(g.size[0]), ny = static_cast<long>(g.size[1]), nz = static_cast<long>(g.size[2]);
+  const long step[3] = {1, nx, nx * ny};
+  // Calls f(neighbour) for the face neighbours of voxel c inside the grid.
+  auto neighbours = [&](std::size_t c, auto&& f) {
+    const long i = static_cast<long>(c) % nx, j = (static_cast<long>(c) / nx) % ny, k = static_cast<long>(c) / (nx * ny);
+    const long idx[3] = {i, j, k}, len[3] = {nx, ny, nz};
+    for (int a = 0; a < 3; ++a) {
+      if (idx[a] > 0) f(c - static_cast<std::size_t>(step[a]));
+      if (idx[a] + 1 < len[a]) f(c + static_cast<std::size_t>(step[a]));
+    }
+  };
+  for (std::size_t c = 0; c < n; ++c) {
+    if (!label[c]) continue;
+    bool border = false;
+    neighbours(c, [&](std::size_t q) { border |= !label[q] && inside[q]; });
+    if (border) queue[inside[c] ? bucket(c) : 0].push_back(c);
+  }
+  for (std::size_t b = 0; b < kLevels; ++b) {
+    std::vector<std::size_t>& cur = queue[b];
+    for (std::size_t h = 0; h < cur.size(); ++h) {  // cur grows while it is read
+      const std::size_t c = cur[h];
+      const unsigned l = label[c];
+      neighbours(c, [&](std::size_t q) {
+        if (label[q] || !inside[q]) return;
+        label[q] = l;
+        const std::size_t bq = bucket(q);
+        queue[std::max(b, bq)].push_back(q);
+      });
+    }
+    std::vector<std::size_t>().swap(cur);
+  }
+  return label;
+}
+
 }  // namespace
 
 // Steps 1-5 of docs/segmentation.md on one grid: the mandible's region and the
@@ -218,6 +333,7 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
 static Separated separate(const Volume& ct, const Options& opt, double native_max_spacing) {
   Separated out;
   Result& r = out.info;
+  DebugLap lap;
   const Geometry& g = ct.geom;
   r.method = "auto";
   std::size_t soft = 0;
@@ -262,6 +378,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     bone = fill->GetOutput();
     bone->DisconnectPipeline();
   }
+  lap("bone mask, crop, fill");
   const Geometry cg = io::geometry_of(bone.GetPointer());
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
@@ -276,21 +393,10 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
   // the whole bone mask.
   // Depth inside a solid (mm), computed once per solid and thresholded at
   // each tried core depth.
-  auto depth_of = [&](MaskImage::Pointer solid) {
-    auto dmap = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
-    dmap->SetInput(solid);
-    dmap->SetInsideIsPositive(true);
-    dmap->SetSquaredDistance(false);
-    dmap->SetUseImageSpacing(true);
-    dmap->SetBackgroundValue(0);
-    dmap->Update();
-    FloatImage::Pointer d = dmap->GetOutput();
-    d->DisconnectPipeline();
-    return d;
-  };
-  auto cores_of = [&](const FloatImage* solid_depth, double depth, unsigned* n_out, std::vector<Features>* f_out) {
+  const Dims3 cdims = cg.size;
+  auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
+  auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
-    const float* d = solid_depth->GetBufferPointer();
     auto* c = core->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = d[i] > depth;
     auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
@@ -327,19 +433,13 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     auto cavity = io::make_image<MaskImage>(cg);
     const auto* filled = fill_d->GetOutput()->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) cavity->GetBufferPointer()[i] = filled[i] && !dn[i];
-    auto cdist = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
-    cdist->SetInput(cavity);
-    cdist->SetInsideIsPositive(true);
-    cdist->SetSquaredDistance(false);
-    cdist->SetUseImageSpacing(true);
-    cdist->SetBackgroundValue(0);
     auto ccav = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
     ccav->SetInput(cavity);
     ccav->FullyConnectedOff();
     ccav->Update();
-    cdist->Update();
+    const std::vector<float> cdepth = depth_of(cavity.GetPointer());
     const auto* cl = ccav->GetOutput()->GetBufferPointer();
-    const float* cd = cdist->GetOutput()->GetBufferPointer();
+    const float* cd = cdepth.data();
     std::vector<float> depth(ccav->GetObjectCount() + 1, 0.0f);
     for (std::size_t i = 0; i < cg.voxel_count(); ++i)
       if (cl[i]) depth[cl[i]] = std::max(depth[cl[i]], cd[i]);
@@ -348,13 +448,14 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     auto* ds = dense_solid->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) ds[i] = dn[i] || (cl[i] && depth[cl[i]] >= thick);
   }
+  lap("dense solid");
   // Deepen the cores until the mandible's separates (teeth in occlusion touch
   // over a patch a few mm wide); dense solid first, then the bone mask.
   double r_used = 0;
-  FloatImage::Pointer bone_depth;  // reused for the watershed landscape
+  std::vector<float> bone_depth;  // reused for the watershed landscape
   for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
-    FloatImage::Pointer sd = depth_of(solid);
-    if (solid == bone) bone_depth = sd;
+    std::vector<float> sd = depth_of(solid.GetPointer());
+    lap("depth map");
     // Every depth is tried; the tallest mandible core wins: a core cut off
     // below fused teeth (only the lower body) is shorter than one reaching
     // the condyles.
@@ -362,7 +463,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     for (double rr = rsep; rr <= std::max(rsep, 3.0) + 1e-9; rr += 0.5) {
       unsigned n = 0;
       std::vector<Features> f;
-      LabelImage::Pointer m = cores_of(sd.GetPointer(), rr, &n, &f);
+      LabelImage::Pointer m = cores_of(sd, rr, &n, &f);
       const unsigned l = pick_mandible(f, voxel_mm3, rr);
       if (!l) continue;
       const double height = f[l].extent(2) + 2 * rr;
@@ -376,8 +477,10 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
         r_used = rr;
       }
     }
+    if (solid == bone) bone_depth = std::move(sd);
     if (mand) break;
   }
+  lap("cores");
   if (std::getenv("MANDISYM_DEBUG_SEG"))
     for (unsigned l = 1; l <= n_markers; ++l)
       std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
@@ -408,28 +511,19 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
   } else {
     // Watershed from all markers on -distance: boundaries settle on the necks.
-    auto landscape = FloatImage::New();
-    landscape->CopyInformation(bone);
-    landscape->SetRegions(bone->GetLargestPossibleRegion());
-    landscape->Allocate();
+    std::vector<float> landscape(cg.voxel_count());
     {
       // Flood deep and bright first: boundaries settle on geometric necks
       // (cusp contacts) and in intensity valleys (occlusal gap, joint space).
-      if (!bone_depth) bone_depth = depth_of(bone);
-      const float* depth = bone_depth->GetBufferPointer();
+      if (bone_depth.empty()) bone_depth = depth_of(bone.GetPointer());
       const auto* b = bone->GetBufferPointer();
       const float hu0 = static_cast<float>(offset);
-      float* l = landscape->GetBufferPointer();
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        l[i] = b[i] ? -std::min(depth[i], 4.0f) / 4.0f - std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f : 1e6f;
+        landscape[i] = b[i] ? -std::min(bone_depth[i], 4.0f) / 4.0f - std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f : 0.0f;
     }
-    auto ws = itk::MorphologicalWatershedFromMarkersImageFilter<FloatImage, LabelImage>::New();
-    ws->SetInput(landscape);
-    ws->SetMarkerImage(markers);
-    ws->SetMarkWatershedLine(false);
-    ws->SetFullyConnected(false);
-    ws->Update();
-    const auto* w = ws->GetOutput()->GetBufferPointer();
+    const std::vector<unsigned> wsl = watershed_from_markers(landscape, bone->GetBufferPointer(), markers->GetBufferPointer(), cg);
+    lap("watershed");
+    const unsigned* w = wsl.data();
     const auto* b = bone->GetBufferPointer();
     const auto* m = markers->GetBufferPointer();
     // Fragments of the mandible: a tooth crown or a thin process whose neck
@@ -444,35 +538,30 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
         fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3))
                   : [&] { std::vector<bool> j(n_markers + 1, false); j[mand] = true; return j; }();
     auto in_mandible = [&](LabelImage::PixelType l) { return l != 0 && joined[l]; };
+    lap("fragments");
     // Keep the reconstruction within a band around the mandible's core so
     // that thin bright structures (streaks) flooded from it stay out.
-    auto core_m = io::make_image<MaskImage>(cg);
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) core_m->GetBufferPointer()[i] = in_mandible(m[i]);
-    auto near = itk::SignedMaurerDistanceMapImageFilter<MaskImage, FloatImage>::New();
-    near->SetInput(core_m);
-    near->SetInsideIsPositive(false);
-    near->SetSquaredDistance(false);
-    near->SetUseImageSpacing(true);
-    near->Update();
-    const float* nd = near->GetOutput()->GetBufferPointer();
+    // The mandible's region (it holds its core) and a margin: where the
+    // band distance and the opening below are needed.
+    std::vector<std::uint8_t> rm(cg.voxel_count());
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) rm[i] = b[i] && in_mandible(w[i]);
+    const Box mbox = bounding_box(rm.data(), cdims, 2);
+    std::vector<std::uint8_t> core_m(cg.voxel_count());
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) core_m[i] = in_mandible(m[i]);
+    std::vector<float> nd2(cg.voxel_count(), kNoFeature);  // mm^2 to the core
+    insert(squared_distance_transform(extract(core_m.data(), cdims, mbox).data(), mbox.size, cg.spacing), mbox, nd2.data(), cdims);
+    lap("band distance");
     const float band = static_cast<float>(r_used + 2.0 * std::max(max_spacing, native_max_spacing));  // two voxels of the coarser of the grid and the scan
     // Beyond the band, keep what is thick: the region opened by a one-voxel
     // ball. Streaks are rays and sheets one or two voxels thin and vanish; a
     // tooth crown whose thin shell left no core within the band stays.
-    auto region_m = io::make_image<MaskImage>(cg);
-    auto* rm = region_m->GetBufferPointer();
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) rm[i] = b[i] && in_mandible(w[i]);
-    using Ball = itk::BinaryBallStructuringElement<unsigned char, 3>;
-    Ball ball;
-    ball.SetRadius(1);
-    ball.CreateStructuringElement();
-    auto open = itk::BinaryMorphologicalOpeningImageFilter<MaskImage, MaskImage, Ball>::New();
-    open->SetInput(region_m);
-    open->SetKernel(ball);
-    open->SetForegroundValue(1);
-    open->SetBackgroundValue(0);
-    open->Update();
-    const auto* thick = open->GetOutput()->GetBufferPointer();
+    std::vector<std::uint8_t> thick(cg.voxel_count(), 0);
+    {
+      std::vector<std::uint8_t> part = extract(rm.data(), cdims, mbox);
+      open_ball(part, mbox.size, {1, 1, 1});
+      insert(part, mbox, thick.data(), cdims);
+    }
+    lap("opening");
     // Only thick parts attached (through bone) to the band part: a separate
     // bone without a marker of its own (the hyoid) is flooded by whichever
     // region reaches it through the background and must stay out.
@@ -482,17 +571,19 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     // their band is already two scan voxels wide: band only. The thick parts
     // reach at most Options::thick_reach_mm from the core (a crown's height).
     const float reach = static_cast<float>(std::max<double>(band, opt.thick_reach_mm));
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) cm[i] = rm[i] && (nd[i] <= band || (fine_scan && thick[i] && nd[i] <= reach));
+    const float band2 = band * band, reach2 = reach * reach;
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i) cm[i] = rm[i] && (nd2[i] <= band2 || (fine_scan && thick[i] && nd2[i] <= reach2));
     auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
     cc->SetInput(cand);
     cc->Update();
     const auto* cl = cc->GetOutput()->GetBufferPointer();
     std::vector<bool> attached(cc->GetObjectCount() + 1, false);
     for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-      if (cl[i] && nd[i] <= band) attached[cl[i]] = true;
+      if (cl[i] && nd2[i] <= band2) attached[cl[i]] = true;
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = cl[i] && attached[cl[i]];
     out.other.assign(crop_mask.size(), 0);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && !in_mandible(w[i]) && w[i] != 0;
+    lap("attached parts");
   }
 
   out.region = region;
@@ -513,9 +604,23 @@ static void set_truncation(Result& r) {
 // Steps 6-7 on the input grid: surface placement, clean-up, truncation.
 // native_max_spacing: the scan's own coarsest spacing (the grid may be a finer
 // interpolation of it, which does not resolve a cortex the scan did not).
-static Result finalize(const Volume& ct, const Options& opt, const MaskImage::RegionType& region,
-                       std::vector<std::uint8_t> crop_mask, Result r, double native_max_spacing) {
+static Result finalize(const Volume& ct, const Options& opt, const MaskImage::RegionType& separation_region,
+                       std::vector<std::uint8_t> separation_mask, Result r, double native_max_spacing) {
+  DebugLap lap;
   const Geometry& g = ct.geom;
+  // Work in the mask's bounding box with a margin of 3 voxels (the closing
+  // ball's radius + 1): every step below is local, and the margin of
+  // background keeps hole filling and closing as on the whole region.
+  const Dims3 sdims{separation_region.GetSize()[0], separation_region.GetSize()[1], separation_region.GetSize()[2]};
+  const Box box = bounding_box(separation_mask.data(), sdims, 3);
+  if (box.size[0] == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
+  std::vector<std::uint8_t> crop_mask = extract(separation_mask.data(), sdims, box);
+  separation_mask = {};
+  MaskImage::RegionType region;
+  for (int a = 0; a < 3; ++a) {
+    region.SetIndex(a, separation_region.GetIndex()[a] + static_cast<long>(box.lo[a]));
+    region.SetSize(a, box.size[a]);
+  }
   const Geometry cg = [&] {
     Geometry c = g;
     for (int a = 0; a < 3; ++a) c.size[a] = region.GetSize()[a];
@@ -523,7 +628,6 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
                               static_cast<double>(region.GetIndex()[2]));
     return c;
   }();
-  const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
   const double offset = r.offset_hu;
   const std::vector<float> hu_crop = crop_values(ct, region, cg);
@@ -545,27 +649,25 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     const auto* fh = fill_hi->GetOutput()->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && fh[i];
   }
+  lap("surface level");
 
-  // Close small gaps, fill the cancellous interior.
+  // Close small gaps (a ball of 1-2 voxels), fill the cancellous interior.
   auto mimg = io::make_image<MaskImage>(cg);
-  std::copy(crop_mask.begin(), crop_mask.end(), mimg->GetBufferPointer());
-  using SE = itk::BinaryBallStructuringElement<unsigned char, 3>;
-  SE se;
-  SE::SizeType radius;
-  for (int a = 0; a < 3; ++a) radius[a] = g.spacing[a] < 0.7 ? 2 : 1;
-  se.SetRadius(radius);
-  se.CreateStructuringElement();
-  auto close = itk::BinaryMorphologicalClosingImageFilter<MaskImage, MaskImage, SE>::New();
-  close->SetInput(mimg);
-  close->SetKernel(se);
-  close->SetForegroundValue(1);
+  {
+    std::vector<std::uint8_t> closed = crop_mask;
+    std::array<int, 3> radius;
+    for (int a = 0; a < 3; ++a) radius[a] = g.spacing[a] < 0.7 ? 2 : 1;
+    close_ball(closed, cg.size, radius);
+    std::copy(closed.begin(), closed.end(), mimg->GetBufferPointer());
+  }
   auto fill = itk::BinaryFillholeImageFilter<MaskImage>::New();
-  fill->SetInput(close->GetOutput());
+  fill->SetInput(mimg);
   fill->SetForegroundValue(1);
   fill->FullyConnectedOn();
   fill->Update();
 
   r.mask.geom = g;
+  lap("closing, fill");
   r.mask.data.assign(g.voxel_count(), 0);
   const auto* out = fill->GetOutput()->GetBufferPointer();
   const auto ri = region.GetIndex();

@@ -25,6 +25,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/distance_transform.h"
 #include "core/error.h"
 
 namespace ms::surface {
@@ -116,88 +117,13 @@ static void finish(Result& r, const Options& opt) {
 
 // Flying-edges surface (after the optional closing and decimation) in LPS,
 // measured, before CGAL repair.
-// Squared Euclidean distance transform along one line (Felzenszwalb &
-// Huttenlocher's lower envelope of parabolas): d[i] = min_q ((i - q) s)^2 + f[q].
-static void edt_line(const float* f, float* d, int n, float s, std::vector<int>& v, std::vector<float>& z) {
-  constexpr float kInf = 1e20f;
-  v.resize(static_cast<std::size_t>(n));
-  z.resize(static_cast<std::size_t>(n) + 1);
-  int k = -1;
-  for (int q = 0; q < n; ++q) {
-    if (!(f[q] < kInf)) continue;
-    const float xq = q * s;
-    while (k >= 0) {
-      const float xv = v[static_cast<std::size_t>(k)] * s;
-      const float cut = ((f[q] + xq * xq) - (f[v[static_cast<std::size_t>(k)]] + xv * xv)) / (2 * (xq - xv));
-      if (cut > z[static_cast<std::size_t>(k)]) {
-        ++k;
-        v[static_cast<std::size_t>(k)] = q;
-        z[static_cast<std::size_t>(k)] = cut;
-        z[static_cast<std::size_t>(k) + 1] = kInf;
-        break;
-      }
-      --k;
-    }
-    if (k < 0) {
-      k = 0;
-      v[0] = q;
-      z[0] = -kInf;
-      z[1] = kInf;
-    }
-  }
-  if (k < 0) {  // no feature on this line
-    std::fill(d, d + n, kInf);
-    return;
-  }
-  int j = 0;
-  for (int q = 0; q < n; ++q) {
-    const float x = q * s;
-    while (z[static_cast<std::size_t>(j) + 1] < x) ++j;
-    const float dx = x - v[static_cast<std::size_t>(j)] * s;
-    d[q] = dx * dx + f[v[static_cast<std::size_t>(j)]];
-  }
-}
-
-// Squared distance (mm^2) of every voxel to the nearest voxel where feature
-// is true, exact, separable over the three axes (OpenMP over lines).
-static std::vector<float> squared_edt(const std::vector<char>& feature, const int dims[3], const double spacing[3]) {
-  constexpr float kInf = 1e20f;
-  const std::size_t n = feature.size();
-  std::vector<float> d(n);
-  for (std::size_t i = 0; i < n; ++i) d[i] = feature[i] ? 0.0f : kInf;
-  const long stride[3] = {1, dims[0], static_cast<long>(dims[0]) * dims[1]};
-  for (int a = 0; a < 3; ++a) {
-    const int b = (a + 1) % 3, c = (a + 2) % 3, len = dims[a];
-    const long lines = static_cast<long>(dims[b]) * dims[c];
-#pragma omp parallel
-    {
-      std::vector<float> in(static_cast<std::size_t>(len)), out(static_cast<std::size_t>(len)), z;
-      std::vector<int> v;
-#pragma omp for schedule(static)
-      for (long l = 0; l < lines; ++l) {
-        const long ib = l % dims[b], ic = l / dims[b];
-        const long base = ib * stride[b] + ic * stride[c];
-        for (int i = 0; i < len; ++i) in[static_cast<std::size_t>(i)] = d[static_cast<std::size_t>(base + i * stride[a])];
-        edt_line(in.data(), out.data(), len, static_cast<float>(spacing[a]), v, z);
-        for (int i = 0; i < len; ++i) d[static_cast<std::size_t>(base + i * stride[a])] = out[static_cast<std::size_t>(i)];
-      }
-    }
-  }
-  return d;
-}
-
-// Binary closing of a 0/1 image by a ball of radius r mm (dilation: within
-// r of the mask; erosion: farther than r from outside the dilation), through
-// two exact distance transforms: linear in the voxels whatever r.
+// Closing of a 0/1 float image by a ball of radius r mm (core/distance_transform).
 static void close_binary(float* buf, const int dims[3], const double spacing[3], double r) {
-  const std::size_t n = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
-  const float r2 = static_cast<float>(r * r);
-  std::vector<char> f(n);
-  for (std::size_t i = 0; i < n; ++i) f[i] = buf[i] > 0.5f;
-  const auto to_mask = squared_edt(f, dims, spacing);
-  for (std::size_t i = 0; i < n; ++i) f[i] = !(to_mask[i] <= r2);  // outside the dilation
-  const auto to_outside = squared_edt(f, dims, spacing);
-  for (std::size_t i = 0; i < n; ++i) buf[i] = to_outside[i] > r2 ? 1.0f : 0.0f;
+  const Dims3 d{static_cast<std::size_t>(dims[0]), static_cast<std::size_t>(dims[1]), static_cast<std::size_t>(dims[2])};
+  std::vector<std::uint8_t> m(d[0] * d[1] * d[2]);
+  for (std::size_t i = 0; i < m.size(); ++i) m[i] = buf[i] > 0.5f;
+  close_euclidean(m, d, {spacing[0], spacing[1], spacing[2]}, r);
+  for (std::size_t i = 0; i < m.size(); ++i) buf[i] = m[i] ? 1.0f : 0.0f;
 }
 
 static Result raw_mesh(const Mask& mask, const Options& opt) {
@@ -307,12 +233,8 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
 
 Mask closed(const Mask& mask, double radius_mm) {
   const Geometry& g = mask.geom;
-  const int dims[3] = {static_cast<int>(g.size[0]), static_cast<int>(g.size[1]), static_cast<int>(g.size[2])};
-  std::vector<float> buf(mask.data.size());
-  for (std::size_t i = 0; i < buf.size(); ++i) buf[i] = mask.data[i] ? 1.0f : 0.0f;
-  if (radius_mm > 0 && !buf.empty()) close_binary(buf.data(), dims, g.spacing.data(), radius_mm);
-  Mask out{g, std::vector<std::uint8_t>(buf.size())};
-  for (std::size_t i = 0; i < buf.size(); ++i) out.data[i] = buf[i] > 0.5f;
+  Mask out = mask;
+  if (radius_mm > 0 && !out.data.empty()) close_euclidean(out.data, g.size, g.spacing, radius_mm);
   return out;
 }
 

@@ -1,0 +1,151 @@
+// Distance transforms and ball morphology (core/distance_transform) against
+// brute force on random blobs in anisotropic grids, including objects cut by
+// the grid's faces (where the boundary conventions matter).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "core/distance_transform.h"
+
+namespace {
+
+using ms::Dims3;
+
+std::size_t at(const Dims3& d, long i, long j, long k) { return static_cast<std::size_t>(i + static_cast<long>(d[0]) * (j + static_cast<long>(d[1]) * k)); }
+
+// Smoothed noise thresholded: blobs of a few voxels, touching the faces.
+std::vector<std::uint8_t> blobs(const Dims3& d, unsigned seed, float level) {
+  std::mt19937 rng(seed);
+  std::vector<float> f(d[0] * d[1] * d[2]);
+  for (float& x : f) x = std::uniform_real_distribution<float>(0, 1)(rng);
+  for (int it = 0; it < 3; ++it) {
+    std::vector<float> g = f;
+    for (long k = 1; k + 1 < long(d[2]); ++k)
+      for (long j = 1; j + 1 < long(d[1]); ++j)
+        for (long i = 1; i + 1 < long(d[0]); ++i)
+          g[at(d, i, j, k)] = (f[at(d, i, j, k)] + f[at(d, i - 1, j, k)] + f[at(d, i + 1, j, k)] + f[at(d, i, j - 1, k)] +
+                               f[at(d, i, j + 1, k)] + f[at(d, i, j, k - 1)] + f[at(d, i, j, k + 1)]) / 7;
+    f = g;
+  }
+  std::vector<std::uint8_t> m(f.size());
+  for (std::size_t i = 0; i < f.size(); ++i) m[i] = f[i] > level;
+  return m;
+}
+
+// Applies f(i, j, k, index) to every voxel.
+template <class F>
+void each(const Dims3& d, F f) {
+  for (long k = 0; k < long(d[2]); ++k)
+    for (long j = 0; j < long(d[1]); ++j)
+      for (long i = 0; i < long(d[0]); ++i) f(i, j, k, at(d, i, j, k));
+}
+
+const Dims3 kDims{19, 15, 13};
+const std::array<double, 3> kSpacing{0.45, 0.6, 1.25};
+
+TEST(DistanceTransform, SquaredDistanceIsExact) {
+  for (unsigned seed : {1u, 2u}) {
+    const auto m = blobs(kDims, seed, 0.52f);
+    const auto d2 = ms::squared_distance_transform(m.data(), kDims, kSpacing);
+    each(kDims, [&](long i, long j, long k, std::size_t c) {
+      double best = ms::kNoFeature;
+      each(kDims, [&](long x, long y, long z, std::size_t q) {
+        if (!m[q]) return;
+        const double dx = (x - i) * kSpacing[0], dy = (y - j) * kSpacing[1], dz = (z - k) * kSpacing[2];
+        best = std::min(best, dx * dx + dy * dy + dz * dz);
+      });
+      ASSERT_NEAR(d2[c], best, 1e-4 * (1 + best)) << i << " " << j << " " << k;
+    });
+  }
+  const std::vector<std::uint8_t> none(kDims[0] * kDims[1] * kDims[2], 0);
+  EXPECT_EQ(ms::squared_distance_transform(none.data(), kDims, kSpacing)[7], ms::kNoFeature);
+}
+
+TEST(DistanceTransform, DepthInsideIsTheDistanceToTheContour) {
+  // Blobs and an ellipsoid cut by the top face.
+  auto m = blobs(kDims, 3, 0.5f);
+  each(kDims, [&](long i, long j, long k, std::size_t c) {
+    const double x = (i - 9) / 7.0, y = (j - 7) / 6.0, z = (k - 10) / 5.0;
+    if (x * x + y * y + z * z <= 1) m[c] = 1;
+  });
+  const auto depth = ms::depth_inside(m.data(), kDims, kSpacing);
+  auto contour = [&](long i, long j, long k) {
+    for (long z = k - 1; z <= k + 1; ++z)
+      for (long y = j - 1; y <= j + 1; ++y)
+        for (long x = i - 1; x <= i + 1; ++x)
+          if (x >= 0 && y >= 0 && z >= 0 && x < long(kDims[0]) && y < long(kDims[1]) && z < long(kDims[2]) && !m[at(kDims, x, y, z)])
+            return true;
+    return false;  // the grid's faces are not a contour
+  };
+  std::size_t deep = 0;
+  each(kDims, [&](long i, long j, long k, std::size_t c) {
+    if (!m[c]) {
+      ASSERT_EQ(depth[c], 0.0f);
+      return;
+    }
+    double best = 1e30;
+    each(kDims, [&](long x, long y, long z, std::size_t q) {
+      if (!m[q] || !contour(x, y, z)) return;
+      const double dx = (x - i) * kSpacing[0], dy = (y - j) * kSpacing[1], dz = (z - k) * kSpacing[2];
+      best = std::min(best, std::sqrt(dx * dx + dy * dy + dz * dz));
+    });
+    ASSERT_NEAR(depth[c], best, 1e-4) << i << " " << j << " " << k;
+    deep += best > 1.0;
+  });
+  EXPECT_GT(deep, 50u);  // the blobs have an interior: the test measures something
+}
+
+// ITK's ball for radius r: offsets with sum (o_a / (r_a + 0.5))^2 <= 1.
+bool in_ball(long dx, long dy, long dz, const std::array<int, 3>& r) {
+  const double a = dx / (r[0] + 0.5), b = dy / (r[1] + 0.5), c = dz / (r[2] + 0.5);
+  return a * a + b * b + c * c <= 1.0;
+}
+
+// Brute-force dilation (outside the grid is background) or erosion (outside
+// the grid is foreground).
+std::vector<std::uint8_t> brute(const std::vector<std::uint8_t>& m, const Dims3& d, const std::array<int, 3>& r, bool dilate) {
+  std::vector<std::uint8_t> out(m.size());
+  each(d, [&](long i, long j, long k, std::size_t c) {
+    bool hit = false;  // dilation: a set voxel in the ball; erosion: a clear one
+    for (long z = -r[2]; z <= r[2] && !hit; ++z)
+      for (long y = -r[1]; y <= r[1] && !hit; ++y)
+        for (long x = -r[0]; x <= r[0] && !hit; ++x) {
+          if (!in_ball(x, y, z, r)) continue;
+          const long X = i + x, Y = j + y, Z = k + z;
+          if (X < 0 || Y < 0 || Z < 0 || X >= long(d[0]) || Y >= long(d[1]) || Z >= long(d[2])) continue;
+          hit = dilate ? m[at(d, X, Y, Z)] != 0 : m[at(d, X, Y, Z)] == 0;
+        }
+    out[c] = dilate ? hit : !hit;
+  });
+  return out;
+}
+
+TEST(DistanceTransform, BallMorphologyEqualsBruteForce) {
+  for (const std::array<int, 3>& r : {std::array<int, 3>{1, 1, 1}, std::array<int, 3>{2, 2, 1}, std::array<int, 3>{2, 1, 3}}) {
+    const auto m = blobs(kDims, 4, 0.5f);
+    auto d = m, e = m, o = m, c = m;
+    ms::dilate_ball(d, kDims, r);
+    ms::erode_ball(e, kDims, r);
+    ms::open_ball(o, kDims, r);
+    ms::close_ball(c, kDims, r);
+    EXPECT_EQ(d, brute(m, kDims, r, true));
+    EXPECT_EQ(e, brute(m, kDims, r, false));
+    EXPECT_EQ(o, brute(brute(m, kDims, r, false), kDims, r, true));
+    // Closing as if embedded in background: pad, close, crop.
+    Dims3 pd;
+    for (int a = 0; a < 3; ++a) pd[a] = kDims[a] + 2 * static_cast<std::size_t>(r[a]);
+    std::vector<std::uint8_t> p(pd[0] * pd[1] * pd[2], 0);
+    each(kDims, [&](long i, long j, long k, std::size_t q) { p[at(pd, i + r[0], j + r[1], k + r[2])] = m[q]; });
+    const auto pc = brute(brute(p, pd, r, true), pd, r, false);
+    std::vector<std::uint8_t> want(m.size());
+    each(kDims, [&](long i, long j, long k, std::size_t q) { want[q] = pc[at(pd, i + r[0], j + r[1], k + r[2])]; });
+    EXPECT_EQ(c, want);
+    // The operations did something on this mask.
+    EXPECT_NE(o, m);
+    EXPECT_NE(c, m);
+  }
+}
+
+}  // namespace
