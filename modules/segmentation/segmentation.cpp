@@ -1,7 +1,6 @@
 // ITK-facing translation unit: no system Eigen here (ENGINEERING.md).
 #include "segmentation/segmentation.h"
 
-#include <itkBinaryFillholeImageFilter.h>
 #include <itkConnectedComponentImageFilter.h>
 #include <itkImage.h>
 #include <itkRegionOfInterestImageFilter.h>
@@ -102,20 +101,30 @@ struct Features {
 std::vector<Features> component_features(const LabelImage* labels, unsigned n, const Geometry& g) {
   std::vector<Features> f(n + 1);
   const auto* buf = labels->GetBufferPointer();
+  // Run by run along i: LPS is affine in the index, so a run's extremes are at
+  // its ends and its sum is its length times the mean of its ends.
   for (std::size_t k = 0; k < g.size[2]; ++k)
-    for (std::size_t j = 0; j < g.size[1]; ++j)
-      for (std::size_t i = 0; i < g.size[0]; ++i) {
-        const unsigned l = buf[g.linear(i, j, k)];
-        if (!l) continue;
-        const Vec3 p = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
-        Features& c = f[l];
-        ++c.voxels;
-        c.sum = c.sum + p;
-        for (int a = 0; a < 3; ++a) {
-          c.lo[a] = std::min(c.lo[a], p[a]);
-          c.hi[a] = std::max(c.hi[a], p[a]);
+    for (std::size_t j = 0; j < g.size[1]; ++j) {
+      const unsigned* row = buf + g.linear(0, j, k);
+      for (std::size_t i = 0; i < g.size[0];) {
+        const unsigned l = row[i];
+        std::size_t e = i;
+        while (e + 1 < g.size[0] && row[e + 1] == l) ++e;
+        if (l) {
+          const Vec3 p = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+          const Vec3 q = g.index_to_lps(static_cast<double>(e), static_cast<double>(j), static_cast<double>(k));
+          const double len = static_cast<double>(e - i + 1);
+          Features& c = f[l];
+          c.voxels += e - i + 1;
+          c.sum = c.sum + (0.5 * len) * (p + q);
+          for (int a = 0; a < 3; ++a) {
+            c.lo[a] = std::min({c.lo[a], p[a], q[a]});
+            c.hi[a] = std::max({c.hi[a], p[a], q[a]});
+          }
         }
+        i = e + 1;
       }
+    }
   return f;
 }
 
@@ -162,6 +171,45 @@ typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionTy
   roi->SetRegionOfInterest(region);
   roi->Update();
   return roi->GetOutput();
+}
+
+// The mask with its enclosed cavities filled: background components
+// (face-connected, or face+edge+vertex when fully_connected) that do not
+// reach a face of the grid. What ITK's BinaryFillholeImageFilter does, without
+// the shape label map it builds on the way (perimeters of every component).
+MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
+  const auto size = in->GetLargestPossibleRegion().GetSize();
+  const Dims3 d{size[0], size[1], size[2]};
+  const std::size_t n = d[0] * d[1] * d[2];
+  auto background = MaskImage::New();
+  background->CopyInformation(in);
+  background->SetRegions(in->GetLargestPossibleRegion());
+  background->Allocate();
+  const auto* m = in->GetBufferPointer();
+  auto* bg = background->GetBufferPointer();
+  for (std::size_t i = 0; i < n; ++i) bg[i] = !m[i];
+  auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
+  cc->SetInput(background);
+  cc->SetFullyConnected(fully_connected);
+  cc->Update();
+  const auto* lab = cc->GetOutput()->GetBufferPointer();
+  std::vector<std::uint8_t> open(cc->GetObjectCount() + 1, 0);  // reaches a face
+  for (std::size_t k = 0; k < d[2]; ++k)
+    for (std::size_t j = 0; j < d[1]; ++j) {
+      const bool face = k == 0 || j == 0 || k + 1 == d[2] || j + 1 == d[1];
+      const std::size_t row = d[0] * (j + d[1] * k);
+      if (face)
+        for (std::size_t i = 0; i < d[0]; ++i) open[lab[row + i]] = 1;
+      else
+        open[lab[row]] = open[lab[row + d[0] - 1]] = 1;
+    }
+  auto out = MaskImage::New();
+  out->CopyInformation(in);
+  out->SetRegions(in->GetLargestPossibleRegion());
+  out->Allocate();
+  auto* o = out->GetBufferPointer();
+  for (std::size_t i = 0; i < n; ++i) o[i] = m[i] || !open[lab[i]];
+  return out;
 }
 
 // A sub-box of a grid: the voxels of a mask with a margin, where local work
@@ -369,15 +417,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
   }
   MaskImage::Pointer bone = crop<MaskImage>(full.GetPointer(), region);
   full = nullptr;
-  {
-    auto fill = itk::BinaryFillholeImageFilter<MaskImage>::New();
-    fill->SetInput(bone);
-    fill->SetForegroundValue(1);
-    fill->FullyConnectedOn();
-    fill->Update();
-    bone = fill->GetOutput();
-    bone->DisconnectPipeline();
-  }
+  bone = filled(bone.GetPointer(), true);
   lap("bone mask, crop, fill");
   const Geometry cg = io::geometry_of(bone.GetPointer());
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
@@ -422,16 +462,12 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     const auto* b = bone->GetBufferPointer();
     const double dense_hu = offset + opt.dense_threshold_hu;
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) dn[i] = b[i] && hu_crop[i] >= dense_hu;
-    auto fill_d = itk::BinaryFillholeImageFilter<MaskImage>::New();
-    fill_d->SetInput(dense);
-    fill_d->SetForegroundValue(1);
-    fill_d->FullyConnectedOff();  // a thin shell must not leak diagonally
-    fill_d->Update();
+    const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false);  // a thin shell must not leak diagonally
     // Fill only thick cavities (cancellous cores). A thin enclosed cavity is a
     // joint space or an occlusal gap wrapped by bone: filling it would weld
     // the condyle to its fossa, the lower teeth to the upper.
     auto cavity = io::make_image<MaskImage>(cg);
-    const auto* filled = fill_d->GetOutput()->GetBufferPointer();
+    const auto* filled = dense_filled->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) cavity->GetBufferPointer()[i] = filled[i] && !dn[i];
     auto ccav = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
     ccav->SetInput(cavity);
@@ -641,12 +677,8 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     auto hi_img = io::make_image<MaskImage>(cg);
     auto* h = hi_img->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) h[i] = crop_mask[i] && hu_crop[i] >= surface_hu;
-    auto fill_hi = itk::BinaryFillholeImageFilter<MaskImage>::New();
-    fill_hi->SetInput(hi_img);
-    fill_hi->SetForegroundValue(1);
-    fill_hi->FullyConnectedOn();
-    fill_hi->Update();
-    const auto* fh = fill_hi->GetOutput()->GetBufferPointer();
+    const MaskImage::Pointer hi_filled = filled(hi_img.GetPointer(), true);
+    const auto* fh = hi_filled->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && fh[i];
   }
   lap("surface level");
@@ -660,16 +692,12 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     close_ball(closed, cg.size, radius);
     std::copy(closed.begin(), closed.end(), mimg->GetBufferPointer());
   }
-  auto fill = itk::BinaryFillholeImageFilter<MaskImage>::New();
-  fill->SetInput(mimg);
-  fill->SetForegroundValue(1);
-  fill->FullyConnectedOn();
-  fill->Update();
+  const MaskImage::Pointer fill = filled(mimg.GetPointer(), true);
 
   r.mask.geom = g;
   lap("closing, fill");
   r.mask.data.assign(g.voxel_count(), 0);
-  const auto* out = fill->GetOutput()->GetBufferPointer();
+  const auto* out = fill->GetBufferPointer();
   const auto ri = region.GetIndex();
   // Closing must only add voxels; ITK's erodes the layer at the image edge,
   // which would hide truncation: union with its input.

@@ -126,7 +126,15 @@ static void close_binary(float* buf, const int dims[3], const double spacing[3],
   for (std::size_t i = 0; i < m.size(); ++i) buf[i] = m[i] ? 1.0f : 0.0f;
 }
 
-static Result raw_mesh(const Mask& mask, const Options& opt) {
+// Flying-edges surface of a mask (after the optional closing), in index-space
+// millimetres of a crop starting pad voxels before index lo.
+struct Contour {
+  vtkSmartPointer<vtkPolyData> pd;
+  std::array<long, 3> lo{0, 0, 0};
+  long pad = 0;
+};
+
+static Contour contour(const Mask& mask, const Options& opt) {
   const Geometry& g = mask.geom;
   // Crop to the mask's bounding box plus a margin of empty voxels so the
   // surface closes at the scan border.
@@ -183,7 +191,15 @@ static Result raw_mesh(const Mask& mask, const Options& opt) {
   clean->Update();
   vtkSmartPointer<vtkPolyData> pd = clean->GetOutput();
   if (pd->GetNumberOfPolys() == 0) throw Error(ExitCode::GeometryFailed, "marching cubes produced no surface");
-  if (opt.target_faces > 0 && static_cast<std::size_t>(pd->GetNumberOfPolys()) > opt.target_faces) {
+  return {pd, lo, pad};
+}
+
+// The contour decimated to opt.target_faces, in LPS, measured (before CGAL repair).
+static Result raw_mesh(const Contour& c, const Geometry& g, const Options& opt, bool decimate = true) {
+  vtkSmartPointer<vtkPolyData> pd = c.pd;
+  const auto& lo = c.lo;
+  const long pad = c.pad;
+  if (decimate && opt.target_faces > 0 && static_cast<std::size_t>(pd->GetNumberOfPolys()) > opt.target_faces) {
     auto tri = Ptr<vtkTriangleFilter>::New();
     tri->SetInputData(pd);
     auto dec = Ptr<vtkQuadricDecimation>::New();
@@ -207,26 +223,37 @@ static Result raw_mesh(const Mask& mask, const Options& opt) {
 }
 
 Result mesh_from_mask(const Mask& mask, const Options& opt) {
-  Result r = raw_mesh(mask, opt);
-  r.closing_mm = opt.close_handles_mm;
-  // Automatic closing: the topology is decided on raw surfaces (no CGAL
-  // repair, ~10 x cheaper); only the chosen one is repaired and remeshed.
-  if (opt.close_handles_auto && opt.close_handles_mm <= 0 && r.stats.genus > 0) {
-    const double finest = std::min({mask.geom.spacing[0], mask.geom.spacing[1], mask.geom.spacing[2]});
-    for (double radius : {1.0, 2.0, 3.0}) {
-      if (radius < finest) continue;  // the kernel would be a single voxel: no closing
-      Options o = opt;
-      o.close_handles_mm = radius;
-      Result c = raw_mesh(mask, o);
-      if (c.stats.genus != 0) continue;
-      finish(c, o);
-      if (c.stats.genus != 0) continue;  // repair changed the topology: try the next radius
-      c.closing_mm = radius;
-      c.genus_before_closing = r.stats.genus;
-      return c;
+  const Geometry& g = mask.geom;
+  // Automatic closing: the topology is decided on the undecimated contours
+  // (the mask's own topology; decimating costs five times the contouring);
+  // only the chosen one is decimated, repaired and remeshed.
+  if (opt.close_handles_auto && opt.close_handles_mm <= 0) {
+    const Contour open = contour(mask, opt);
+    const int genus = raw_mesh(open, g, opt, false).stats.genus;
+    if (genus > 0) {
+      const double finest = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+      for (double radius : {1.0, 2.0, 3.0}) {
+        if (radius < finest) continue;  // the kernel would be a single voxel: no closing
+        Options o = opt;
+        o.close_handles_mm = radius;
+        const Contour cc = contour(mask, o);
+        if (raw_mesh(cc, g, o, false).stats.genus != 0) continue;
+        Result c = raw_mesh(cc, g, o);
+        if (c.stats.genus != 0) continue;  // decimation made a handle: try the next radius
+        finish(c, o);
+        if (c.stats.genus != 0) continue;  // repair changed the topology: try the next radius
+        c.closing_mm = radius;
+        c.genus_before_closing = genus;
+        return c;
+      }
     }
-    r.genus_before_closing = r.stats.genus;
+    Result r = raw_mesh(open, g, opt);
+    if (genus > 0) r.genus_before_closing = genus;
+    finish(r, opt);
+    return r;
   }
+  Result r = raw_mesh(contour(mask, opt), g, opt);
+  r.closing_mm = opt.close_handles_mm;
   finish(r, opt);
   return r;
 }
