@@ -55,6 +55,13 @@ namespace {
 
 using FloatImage = itk::Image<float, 3>;
 
+// A core that falls apart one depth step deeper into pieces of which the
+// second largest holds at least this fraction is two bones welded together
+// (maxilla and mandible through teeth in occlusion: the upper jaw's core is a
+// third to a half of the lower's), not a mandible losing a thin part (a
+// condyle head or a crown is under a tenth of it).
+constexpr double kSecondBoneFraction = 0.2;
+
 // MANDISYM_DEBUG_SEG=1: time of each step on stderr (profiling aid).
 struct DebugLap {
   bool on = std::getenv("MANDISYM_DEBUG_SEG") != nullptr;
@@ -494,24 +501,74 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     lap("depth map");
     // Every depth is tried; the tallest mandible core wins: a core cut off
     // below fused teeth (only the lower body) is shorter than one reaching
-    // the condyles.
-    double best_height = 0;
-    for (double rr = rsep; rr <= std::max(rsep, 3.0) + 1e-9; rr += 0.5) {
-      unsigned n = 0;
+    // the condyles. But not a core that is two bones: teeth in occlusion weld
+    // the maxilla to the mandible's core at shallow depths, and that core is
+    // taller still. Cores are nested (a deeper core lies inside exactly one
+    // shallower core), so a welded core shows itself one step deeper, where
+    // it falls apart into two large cores; a mandible that only loses thin
+    // parts (condyles, coronoids, crowns) keeps one large core and small ones.
+    struct Trial {
+      double rr = 0;
+      LabelImage::Pointer m;
+      unsigned n = 0, l = 0;
       std::vector<Features> f;
-      LabelImage::Pointer m = cores_of(sd, rr, &n, &f);
-      const unsigned l = pick_mandible(f, voxel_mm3, rr);
-      if (!l) continue;
-      const double height = f[l].extent(2) + 2 * rr;
-      if (height > best_height + 1.0) {
-        best_height = height;
-        markers = m;
-        n_markers = n;
-        feats = std::move(f);
-        mand = l;
-        r.marker_source = name;
-        r_used = rr;
+      double height = 0;
+    };
+    Trial pending, tallest_any;  // tallest_any: markers are recomputed if every candidate is two bones
+    double best_height = 0;
+    auto adopt = [&](Trial& t) {
+      best_height = t.height;
+      markers = t.m;
+      n_markers = t.n;
+      feats = t.f;
+      mand = t.l;
+      r.marker_source = name;
+      r_used = t.rr;
+    };
+    // Decides the pending trial given the cores one step deeper (null: none).
+    auto decide = [&](const LabelImage* deeper, unsigned n_deeper) {
+      if (!pending.l) return;
+      bool two_bones = false;
+      if (deeper) {
+        std::vector<std::size_t> piece(n_deeper + 1, 0);
+        const auto* a = pending.m->GetBufferPointer();
+        const auto* d = deeper->GetBufferPointer();
+        for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+          if (a[i] == pending.l && d[i]) ++piece[d[i]];
+        std::sort(piece.begin() + 1, piece.end(), std::greater<>());
+        std::size_t total = 0;
+        for (std::size_t k = 1; k < piece.size(); ++k) total += piece[k];
+        two_bones = piece.size() > 2 && static_cast<double>(piece[2]) >= kSecondBoneFraction * static_cast<double>(total);
+        if (std::getenv("MANDISYM_DEBUG_SEG"))
+          std::fprintf(stderr, "  r %.1f core one step deeper: pieces %.1f, %.1f cm3 of %.1f%s\n", pending.rr,
+                       piece.size() > 1 ? piece[1] * voxel_mm3 / 1000 : 0.0, piece.size() > 2 ? piece[2] * voxel_mm3 / 1000 : 0.0,
+                       total * voxel_mm3 / 1000, two_bones ? ": two bones" : "");
       }
+      if (pending.height > tallest_any.height) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.height};
+      if (!two_bones && pending.height > best_height + 1.0) adopt(pending);
+    };
+    const double r_max = std::max(rsep, 3.0) + 1e-9;
+    for (double rr = rsep; rr <= r_max; rr += 0.5) {
+      Trial t;
+      t.rr = rr;
+      t.m = cores_of(sd, rr, &t.n, &t.f);
+      t.l = pick_mandible(t.f, voxel_mm3, rr);
+      if (t.l) t.height = t.f[t.l].extent(2) + 2 * rr;
+      if (std::getenv("MANDISYM_DEBUG_SEG") && t.l)
+        std::fprintf(stderr, "  %s r %.1f: mandible core %.1f cm3 w %.0f d %.0f h %.0f (%u cores)\n", name, rr,
+                     t.f[t.l].voxels * voxel_mm3 / 1000, t.f[t.l].extent(0) + 2 * rr, t.f[t.l].extent(1) + 2 * rr, t.height, t.n);
+      decide(t.m.GetPointer(), t.n);
+      pending = std::move(t);
+    }
+    decide(nullptr, 0);
+    pending = Trial{};
+    if (!mand && tallest_any.l) {  // every candidate looked like two bones: the tallest, as before
+      Trial t;
+      t.rr = tallest_any.rr;
+      t.m = cores_of(sd, t.rr, &t.n, &t.f);
+      t.l = pick_mandible(t.f, voxel_mm3, t.rr);
+      t.height = tallest_any.height;
+      if (t.l) adopt(t);
     }
     if (solid == bone) bone_depth = std::move(sd);
     if (mand) break;
@@ -557,7 +614,22 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
         landscape[i] = b[i] ? -std::min(bone_depth[i], 4.0f) / 4.0f - std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f : 0.0f;
     }
-    const std::vector<unsigned> wsl = watershed_from_markers(landscape, bone->GetBufferPointer(), markers->GetBufferPointer(), cg);
+    // Markers from the dense-bone solid flood it first, then the rest of the
+    // bone: a joint space bridged by partial volume (above the bone threshold,
+    // below the dense one) must not let the skull's flood into the condyle
+    // before the mandible's own reaches it through the condylar process (it
+    // did: 0.8 mm, 1 mm joint space, the condylar processes went to the skull).
+    std::vector<unsigned> wsl;
+    if (r.marker_source == std::string("dense bone")) {
+      std::vector<std::uint8_t> dense_bone(cg.voxel_count());
+      const auto* b = bone->GetBufferPointer();
+      const auto* ds = dense_solid->GetBufferPointer();
+      for (std::size_t i = 0; i < dense_bone.size(); ++i) dense_bone[i] = b[i] && ds[i];
+      const std::vector<unsigned> first = watershed_from_markers(landscape, dense_bone.data(), markers->GetBufferPointer(), cg);
+      wsl = watershed_from_markers(landscape, b, first.data(), cg);
+    } else {
+      wsl = watershed_from_markers(landscape, bone->GetBufferPointer(), markers->GetBufferPointer(), cg);
+    }
     lap("watershed");
     const unsigned* w = wsl.data();
     const auto* b = bone->GetBufferPointer();
@@ -620,6 +692,11 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     out.other.assign(crop_mask.size(), 0);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && !in_mandible(w[i]) && w[i] != 0;
     lap("attached parts");
+    if (std::getenv("MANDISYM_DEBUG_SEG")) {
+      std::size_t n_region = 0, n_kept = 0;
+      for (std::size_t i = 0; i < crop_mask.size(); ++i) n_region += rm[i], n_kept += crop_mask[i];
+      std::fprintf(stderr, "  mandible region %.1f cm3 (watershed), %.1f cm3 kept (band and thick parts)\n", n_region * voxel_mm3 / 1000, n_kept * voxel_mm3 / 1000);
+    }
   }
 
   out.region = region;
@@ -672,15 +749,21 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   // where the scan resolves the cortex (voxels up to 1.25 mm); the
   // cancellous core below that level is restored by the hole filling.
   if (native_max_spacing <= 1.25) {
-    const double surface_hu = offset + opt.surface_threshold_hu;
-    // Keep voxels above the surface level, plus voxels enclosed by them.
+    const double surface_hu = offset + opt.surface_threshold_hu, bone_hu = offset + opt.bone_threshold_hu;
+    // Keep voxels above the surface level, plus voxels enclosed by them and
+    // by the neighbouring bones: where the separation cut the mandible from
+    // another bone (a condyle from its fossa across a bridged joint space),
+    // its cortex is open, and the cancellous interior must not drain away
+    // through the cut (it did: 0.8 mm, teeth in occlusion, 1 mm joint space,
+    // 47 of 80 cm3 kept).
     auto hi_img = io::make_image<MaskImage>(cg);
     auto* h = hi_img->GetBufferPointer();
-    for (std::size_t i = 0; i < crop_mask.size(); ++i) h[i] = crop_mask[i] && hu_crop[i] >= surface_hu;
+    for (std::size_t i = 0; i < crop_mask.size(); ++i) h[i] = hu_crop[i] >= (crop_mask[i] ? surface_hu : bone_hu);
     const MaskImage::Pointer hi_filled = filled(hi_img.GetPointer(), true);
     const auto* fh = hi_filled->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && fh[i];
   }
+  if (std::getenv("MANDISYM_DEBUG_SEG")) std::fprintf(stderr, "  after surface level: %zu voxels\n", static_cast<std::size_t>(std::count(crop_mask.begin(), crop_mask.end(), 1)));
   lap("surface level");
 
   // Close small gaps (a ball of 1-2 voxels), fill the cancellous interior.

@@ -189,8 +189,25 @@ TEST(AutoSegmentation, TeethInOcclusionAreSeparated) {
   const auto r = segmentation::segment_mandible(ph.ct);
   const double d = ms::testing::dice(r.mask, ph.mandible);
   RecordProperty("dice", std::to_string(d));
-  EXPECT_GE(d, 0.94);
+  EXPECT_GE(d, 0.955);
   EXPECT_GT(r.separation_radius_mm, 1.0);  // needed deeper cores than the default
+}
+
+// Teeth in occlusion and a 1 mm joint space: at a shallow core depth the
+// maxilla's and the mandible's cores are one (welded through the crowns), and
+// that core, reaching from the chin to the upper jaw, was the tallest
+// candidate: the mask held the maxilla (Dice 0.62, 172 cm3 with seed 1). One
+// depth step deeper it falls apart into two large cores, which now rules it
+// out. The bridged 1 mm joint space also let the skull take the condylar
+// processes and the cortex opened there drained the filled interior (Dice
+// 0.72 with this seed): now 0.958.
+TEST(AutoSegmentation, MaxillaWeldedThroughTheTeethIsNotTakenForTheMandible) {
+  const auto ph = jaw_phantom(0.8, 0, 1.0, 3);
+  const auto r = segmentation::segment_mandible(ph.ct);
+  const double d = ms::testing::dice(r.mask, ph.mandible);
+  RecordProperty("dice", std::to_string(d));
+  EXPECT_GE(d, 0.95);
+  EXPECT_LT(static_cast<double>(r.voxels), 1.02 * static_cast<double>(ph.mandible.count()));
 }
 
 // Under pose, a molar crown's thin dense shell can leave no core near it, and
