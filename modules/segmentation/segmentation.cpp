@@ -224,10 +224,6 @@ MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
 struct Box {
   std::array<std::size_t, 3> lo{0, 0, 0};
   Dims3 size{0, 0, 0};
-  std::size_t to_grid(std::size_t c, const Dims3& dims) const {  // box linear index -> grid linear index
-    const std::size_t i = c % size[0], j = (c / size[0]) % size[1], k = c / (size[0] * size[1]);
-    return (i + lo[0]) + dims[0] * ((j + lo[1]) + dims[1] * (k + lo[2]));
-  }
 };
 
 // Bounding box of the set voxels grown by pad, clipped to the grid (empty mask: empty box).
