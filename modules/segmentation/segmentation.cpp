@@ -535,7 +535,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
         std::size_t total = 0;
         for (std::size_t k = 1; k < piece.size(); ++k) total += piece[k];
         two_bones = piece.size() > 2 && static_cast<double>(piece[2]) >= kSecondBoneFraction * static_cast<double>(total);
-        if (std::getenv("MANDISYM_DEBUG_SEG"))
+        if (lap.on)
           std::fprintf(stderr, "  r %.1f core one step deeper: pieces %.1f, %.1f cm3 of %.1f%s\n", pending.rr,
                        piece.size() > 1 ? piece[1] * voxel_mm3 / 1000 : 0.0, piece.size() > 2 ? piece[2] * voxel_mm3 / 1000 : 0.0,
                        total * voxel_mm3 / 1000, two_bones ? ": two bones" : "");
@@ -550,7 +550,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
       t.m = cores_of(sd, rr, &t.n, &t.f);
       t.l = pick_mandible(t.f, voxel_mm3, rr);
       if (t.l) t.height = t.f[t.l].extent(2) + 2 * rr;
-      if (std::getenv("MANDISYM_DEBUG_SEG") && t.l)
+      if (lap.on && t.l)
         std::fprintf(stderr, "  %s r %.1f: mandible core %.1f cm3 w %.0f d %.0f h %.0f (%u cores)\n", name, rr,
                      t.f[t.l].voxels * voxel_mm3 / 1000, t.f[t.l].extent(0) + 2 * rr, t.f[t.l].extent(1) + 2 * rr, t.height, t.n);
       decide(t.m.GetPointer(), t.n);
@@ -570,7 +570,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     if (mand) break;
   }
   lap("cores");
-  if (std::getenv("MANDISYM_DEBUG_SEG"))
+  if (lap.on)
     for (unsigned l = 1; l <= n_markers; ++l)
       std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
                    feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], l == mand ? "  <- mandible" : "");
@@ -688,7 +688,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     out.other.assign(crop_mask.size(), 0);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && !in_mandible(w[i]) && w[i] != 0;
     lap("attached parts");
-    if (std::getenv("MANDISYM_DEBUG_SEG")) {
+    if (lap.on) {
       std::size_t n_region = 0, n_kept = 0;
       for (std::size_t i = 0; i < crop_mask.size(); ++i) n_region += rm[i], n_kept += crop_mask[i];
       std::fprintf(stderr, "  mandible region %.1f cm3 (watershed), %.1f cm3 kept (band and thick parts)\n", n_region * voxel_mm3 / 1000, n_kept * voxel_mm3 / 1000);
@@ -759,7 +759,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     const auto* fh = hi_filled->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && fh[i];
   }
-  if (std::getenv("MANDISYM_DEBUG_SEG")) std::fprintf(stderr, "  after surface level: %zu voxels\n", static_cast<std::size_t>(std::count(crop_mask.begin(), crop_mask.end(), 1)));
+  if (lap.on) std::fprintf(stderr, "  after surface level: %zu voxels\n", static_cast<std::size_t>(std::count(crop_mask.begin(), crop_mask.end(), 1)));
   lap("surface level");
 
   // Close small gaps (a ball of 1-2 voxels), fill the cancellous interior.
@@ -778,14 +778,13 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   r.mask.data.assign(g.voxel_count(), 0);
   const auto* out = fill->GetBufferPointer();
   const auto ri = region.GetIndex();
-  // Closing must only add voxels; ITK's erodes the layer at the image edge,
-  // which would hide truncation: union with its input.
+  // Closing (as if the box were embedded in background) and hole filling
+  // only add voxels: the result holds its input, so a mandible cut by the
+  // scan's edge still touches it (truncation).
   for (std::size_t k = 0; k < cg.size[2]; ++k)
     for (std::size_t j = 0; j < cg.size[1]; ++j)
-      for (std::size_t i = 0; i < cg.size[0]; ++i) {
-        const std::size_t c = cg.linear(i, j, k);
-        if (out[c] || crop_mask[c]) r.mask.data[g.linear(i + ri[0], j + ri[1], k + ri[2])] = 1;
-      }
+      for (std::size_t i = 0; i < cg.size[0]; ++i)
+        if (out[cg.linear(i, j, k)]) r.mask.data[g.linear(i + ri[0], j + ri[1], k + ri[2])] = 1;
   r.voxels = r.mask.count();
   if (r.voxels == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
   r.volume_mm3 = r.voxels * voxel_mm3;

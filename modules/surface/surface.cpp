@@ -115,8 +115,6 @@ static void finish(Result& r, const Options& opt) {
   measure_outward(r);
 }
 
-// Flying-edges surface (after the optional closing and decimation) in LPS,
-// measured, before CGAL repair.
 // Closing of a 0/1 float image by a ball of radius r mm (core/distance_transform).
 static void close_binary(float* buf, const int dims[3], const double spacing[3], double r) {
   const Dims3 d{static_cast<std::size_t>(dims[0]), static_cast<std::size_t>(dims[1]), static_cast<std::size_t>(dims[2])};

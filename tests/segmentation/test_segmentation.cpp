@@ -182,33 +182,30 @@ INSTANTIATE_TEST_SUITE_P(
       return n;
     });
 
-// Teeth in occlusion (gap 0): separated by deeper cores; below the 0.97 target
-// for now (issue C is open). Guards the level reached: 0.949 measured.
-TEST(AutoSegmentation, TeethInOcclusionAreSeparated) {
-  const auto ph = jaw_phantom(0.8, 0, 2.5, 3);
-  const auto r = segmentation::segment_mandible(ph.ct);
-  const double d = ms::testing::dice(r.mask, ph.mandible);
-  RecordProperty("dice", std::to_string(d));
-  EXPECT_GE(d, 0.955);
-  EXPECT_GT(r.separation_radius_mm, 1.0);  // needed deeper cores than the default
-}
+// Teeth in occlusion (gap 0), 0.8 mm voxels: separated by deeper cores, below
+// the 0.97 target (issue C is open: the lower crowns, stacked flat on the upper
+// ones, go to the maxilla); guards the level reached, 0.958 at both joint
+// spaces. With a 1 mm joint space this used to fail outright: at a shallow
+// core depth the maxilla's and the mandible's cores are one (welded through
+// the crowns), and that core, reaching from the chin to the upper jaw, was
+// the tallest candidate (Dice 0.62 and 172 cm3 with seed 1); one depth step
+// deeper it falls apart into two large cores, which now rules it out. The
+// bridged joint also let the skull take the condylar processes, and the
+// cortex opened there drained the filled interior (Dice 0.72 with seed 3).
+class TeethInOcclusion : public ::testing::TestWithParam<double> {};
 
-// Teeth in occlusion and a 1 mm joint space: at a shallow core depth the
-// maxilla's and the mandible's cores are one (welded through the crowns), and
-// that core, reaching from the chin to the upper jaw, was the tallest
-// candidate: the mask held the maxilla (Dice 0.62, 172 cm3 with seed 1). One
-// depth step deeper it falls apart into two large cores, which now rules it
-// out. The bridged 1 mm joint space also let the skull take the condylar
-// processes and the cortex opened there drained the filled interior (Dice
-// 0.72 with this seed): now 0.958.
-TEST(AutoSegmentation, MaxillaWeldedThroughTheTeethIsNotTakenForTheMandible) {
-  const auto ph = jaw_phantom(0.8, 0, 1.0, 3);
+TEST_P(TeethInOcclusion, AreSeparatedWithoutTheMaxilla) {
+  const auto ph = jaw_phantom(0.8, 0, GetParam(), 3);
   const auto r = segmentation::segment_mandible(ph.ct);
   const double d = ms::testing::dice(r.mask, ph.mandible);
   RecordProperty("dice", std::to_string(d));
   EXPECT_GE(d, 0.95);
-  EXPECT_LT(static_cast<double>(r.voxels), 1.02 * static_cast<double>(ph.mandible.count()));
+  EXPECT_GT(r.separation_radius_mm, 1.0);  // needed deeper cores than the default
+  EXPECT_LT(static_cast<double>(r.voxels), 1.02 * static_cast<double>(ph.mandible.count()));  // no maxilla
 }
+
+INSTANTIATE_TEST_SUITE_P(AutoSegmentation, TeethInOcclusion, ::testing::Values(2.5, 1.0),
+                         [](const ::testing::TestParamInfo<double>& i) { return i.param == 1.0 ? std::string("joint1mm") : std::string("joint2_5mm"); });
 
 // Under pose, a molar crown's thin dense shell can leave no core near it, and
 // a crown whose neck the core depth cut becomes a marker of its own: both were
