@@ -131,7 +131,7 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
     sdf::P2 head{-8.5, 55.0};
     sdf::P2 cor{24, 51};  // coronoid tip ~3 mm below the condylion after the tilt
     sdf::P2 post_top{-15, 46}, post_low{0, 0};
-    // Ramus height: stretch everything above the angle vertically.
+    // Ramus height: stretch the ramus plate above the angle vertically; the head moves up with its top.
     const double h0 = 60.0;  // condylion height above the corner, unmodified
     const double scale = (h0 + a.ramus_height_mm) / h0;
     // Gonial angle: rotate about the corner, positive opens the angle (top
@@ -145,7 +145,9 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
     };
     for (auto& q : poly) q = xf(q);
     m.polygon = poly;
-    m.head_fu = xf(head);
+    // The condylar head is not stretched: it rides on top of the ramus, so
+    // the condylion rises by exactly the knob along the ramus axis.
+    m.head_fu = xf({head.x, (head.y + a.ramus_height_mm) / scale});
     m.coronoid_fu = xf(cor);
     m.post_top_fu = xf(post_top);
     m.post_low_fu = xf(post_low);
