@@ -6,6 +6,7 @@
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
+#include <itkImageIOFactory.h>
 #include <itkImageSeriesWriter.h>
 #include <itkMetaDataObject.h>
 #include <itkMetaImageIOFactory.h>
@@ -21,6 +22,7 @@
 #include <iomanip>
 #include <limits>
 #include <mutex>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <zlib.h>
@@ -75,6 +77,85 @@ std::string lower(std::string s) {
 
 
 
+// ITK's volume readers (MetaIO, the NIfTI and NRRD libraries) print their own
+// diagnostics on stderr, several lines per failure; the product's contract is
+// one error line. While a reader runs, file descriptor 2 goes to a temporary
+// file; the first line it caught can then explain a terse ITK exception.
+// Ingest runs on one thread; nothing else writes to stderr meanwhile.
+class StderrCapture {
+ public:
+  StderrCapture() {
+    std::fflush(stderr);
+    file_ = std::tmpfile();
+    if (!file_) return;
+    saved_ = ::dup(2);
+    if (saved_ < 0 || ::dup2(::fileno(file_), 2) < 0) restore();
+  }
+  ~StderrCapture() {
+    restore();
+    if (file_) std::fclose(file_);
+  }
+  StderrCapture(const StderrCapture&) = delete;
+  StderrCapture& operator=(const StderrCapture&) = delete;
+  // First non-empty line the libraries printed ("" if none).
+  std::string first() {
+    restore();
+    if (!file_) return "";
+    std::rewind(file_);
+    char line[512];
+    while (std::fgets(line, sizeof line, file_)) {
+      std::string l = line;
+      while (!l.empty() && (l.back() == '\n' || l.back() == '\r' || l.back() == ' ')) l.pop_back();
+      const auto start = l.find_first_not_of(" *");
+      if (start != std::string::npos) return l.substr(start);
+    }
+    return "";
+  }
+
+ private:
+  void restore() {
+    if (saved_ < 0) return;
+    std::fflush(stderr);
+    ::dup2(saved_, 2);
+    ::close(saved_);
+    saved_ = -1;
+  }
+  std::FILE* file_ = nullptr;
+  int saved_ = -1;
+};
+
+// One line for a failed ITK read: the deepest cause in a NRRD library chain
+// ("[nrrd] _nrrdEncodingRaw_read: fread got only ..."), else what the library
+// printed on stderr (MetaIO: "DimSize required and not defined."), else ITK's
+// own first line.
+std::string describe_read_failure(const std::string& description, const std::string& printed) {
+  std::istringstream in(description);
+  std::string line, deepest;
+  while (std::getline(in, line)) {
+    if (line.rfind("[nrrd]", 0) != 0) continue;
+    const auto p = line.rfind(": ");
+    if (p != std::string::npos && !trim(line.substr(p + 2)).empty()) deepest = trim(line.substr(p + 2));
+  }
+  if (!deepest.empty()) return deepest;
+  if (!printed.empty()) return printed;
+  if (description.find("Could not create IO object") != std::string::npos)
+    return "no reader recognises the file (not NIfTI, NRRD or MetaImage)";
+  return first_line(description);
+}
+
+// Runs reader->Update() with the libraries' stderr captured. Returns "" on
+// success, else describe_read_failure's line.
+template <class Reader>
+std::string try_update(Reader& reader) {
+  StderrCapture capture;
+  try {
+    reader->Update();
+    return "";
+  } catch (const itk::ExceptionObject& e) {
+    return describe_read_failure(e.GetDescription(), capture.first());
+  }
+}
+
 std::string volume_kind(const std::string& path) {
   const std::string l = lower(path);
   auto ends = [&](const char* s) {
@@ -127,10 +208,12 @@ void finish(LoadedScan& scan, double hu_offset) {
     scan.info.pixel_sha256 = top.hex_digest();
   }
   // A CT in HU has air near -1000 and nothing far below it.
-  if (mn > -500 || mn < -3100)
-    scan.info.warnings.push_back("value range [" + std::to_string(static_cast<int>(mn)) + ", " +
-                                 std::to_string(static_cast<int>(mx)) +
-                                 "] does not look like CT in HU (air should be near -1000); check --hu-offset");
+  if (mn > -500 || mn < -3100) {
+    char range[96];  // %.0f: any finite float prints (an int cast of 1e30 would be undefined)
+    std::snprintf(range, sizeof range, "[%.0f, %.0f]", static_cast<double>(mn), static_cast<double>(mx));
+    scan.info.warnings.push_back(std::string("value range ") + range +
+                                 " does not look like CT in HU (air should be near -1000); check --hu-offset");
+  }
 }
 
 LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
@@ -230,6 +313,8 @@ void check_nifti_payload(const std::string& path) {
   }
   const bool single_file = std::memcmp(hdr + 344, "n+1", 3) == 0;
   if (!single_file || bitpix <= 0) return;  // .hdr/.img pairs: leave to ITK
+  if (!std::isfinite(vox_offset) || vox_offset < 0 || vox_offset > 1e12f)  // found by fuzzing (cast of -7e32)
+    throw Error(ExitCode::InputInvalid, path + ": NIfTI header has an invalid data offset (vox_offset " + std::to_string(vox_offset) + ")");
   const std::uint64_t skip = static_cast<std::uint64_t>(vox_offset) > 348 ? static_cast<std::uint64_t>(vox_offset) - 348 : 0;
   std::vector<unsigned char> buf(1 << 20);
   for (std::uint64_t left = skip; left > 0;) {
@@ -304,28 +389,76 @@ std::string patched_nrrd_header(const std::string& path, std::string& note) {
   return o ? tmp.string() : "";
 }
 
+// What a volume header declares, checked before ITK allocates it (found by
+// fuzzing: a 200-byte NRRD or MetaImage header can declare terabytes, and ITK
+// allocates the whole image before it reads a voxel). Refused: more voxels
+// than this machine's memory holds as float, or more bytes than the file(s)
+// can hold even at deflate's best ratio (~1032:1). The data files of detached
+// headers (.nhdr "data file:", .mhd "ElementDataFile") count when they name
+// one existing file; a file list or pattern is left to the memory check.
+void check_declared_size(const std::string& path, const char* what) {
+  StderrCapture quiet;  // the reader that follows reports any failure
+  const itk::ImageIOBase::Pointer io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::CommonEnums::IOFileMode::ReadMode);
+  if (!io) return;  // the reader says why
+  io->SetFileName(path);
+  long double voxels = 1, stored = 0;
+  try {
+    io->ReadImageInformation();
+    for (unsigned d = 0; d < io->GetNumberOfDimensions(); ++d) voxels *= static_cast<long double>(io->GetDimensions(d));
+    stored = voxels * io->GetNumberOfComponents() * io->GetComponentSize();  // throws for an unknown pixel type
+  } catch (const itk::ExceptionObject&) {
+    return;  // the reader says why
+  }
+  const long double memory = static_cast<long double>(::sysconf(_SC_PHYS_PAGES)) * ::sysconf(_SC_PAGE_SIZE);
+  auto mb = [](long double b) { return std::to_string(static_cast<long long>(std::min(b / 1e6L, 1e15L))) + " MB"; };
+  if (memory > 0 && voxels * sizeof(float) + stored > memory)
+    throw Error(ExitCode::InputInvalid, path + ": " + what + " header declares " + mb(voxels * sizeof(float)) +
+                                            " of voxels, more than this machine's memory (" + mb(memory) + ")");
+  std::error_code ec;
+  long double on_disk = static_cast<long double>(fs::file_size(path, ec));
+  if (ec) return;
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  for (int n = 0; n < 200 && std::getline(in, line); ++n) {
+    const std::string l = lower(line);
+    std::string name;
+    if (l.rfind("data file:", 0) == 0 || l.rfind("datafile:", 0) == 0 || l.rfind("elementdatafile", 0) == 0)
+      name = trim(line.substr(line.find_first_of(":=") + 1));
+    if (name.empty()) continue;
+    if (lower(name) == "local") break;
+    const fs::path data = fs::path(name).is_absolute() ? fs::path(name) : fs::path(path).parent_path() / name;
+    const auto bytes = fs::file_size(data, ec);
+    if (ec) return;  // a list, a pattern or a missing file: the reader decides
+    on_disk += static_cast<long double>(bytes);
+    break;
+  }
+  constexpr long double kMaxInflation = 1100;
+  if (stored > kMaxInflation * std::max<long double>(on_disk, 1))
+    throw Error(ExitCode::InputInvalid, path + ": " + what + " header declares " + mb(stored) + " of voxel data but the file" +
+                                            " holds " + std::to_string(static_cast<long long>(on_disk)) + " bytes");
+}
+
 LoadedScan read_volume_file(const std::string& path, const std::string& kind) {
   if (kind == "nifti") check_nifti_payload(path);
+  check_declared_size(path, "volume");
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
   std::string note;
-  try {
-    reader->Update();
-  } catch (const itk::ExceptionObject& e) {
+  if (const std::string failed = try_update(reader); !failed.empty()) {
     const std::string patched = kind == "nrrd" ? patched_nrrd_header(path, note) : "";
-    if (patched.empty())
-      throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + first_line(e.GetDescription()));
+    if (patched.empty()) throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + failed);
+    struct Remove {
+      std::string f;
+      ~Remove() {
+        std::error_code ec;
+        fs::remove(f, ec);
+      }
+    } remove_patched{patched};
+    check_declared_size(patched, "volume");
     reader = itk::ImageFileReader<FloatImage>::New();
     reader->SetFileName(patched);
-    try {
-      reader->Update();
-    } catch (const itk::ExceptionObject& e2) {
-      std::error_code ec;
-      fs::remove(patched, ec);
-      throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + first_line(e2.GetDescription()));
-    }
-    std::error_code ec;
-    fs::remove(patched, ec);
+    if (const std::string failed2 = try_update(reader); !failed2.empty())
+      throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + failed2);
   }
   LoadedScan scan;
   scan.info.path = path;
@@ -418,41 +551,53 @@ void write_volume(const Volume& volume, const std::string& path) {
 
 void write_mask(const Mask& mask, const std::string& path) { write_image<MaskImage>(mask.geom, mask.data, path, "mask"); }
 
-Mask read_mask(const std::string& path) {
+namespace {
+// A mask or label map read as float whatever its stored type (so that a
+// float or signed file is not converted by a narrowing cast), after the same
+// existence and NIfTI payload checks as a volume. Non-finite values refused.
+FloatImage::Pointer read_float_image(const std::string& path, const char* what) {
   register_factories();
-  auto reader = itk::ImageFileReader<MaskImage>::New();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file");
+  if (::access(path.c_str(), R_OK) != 0) throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
+  if (volume_kind(path) == "nifti") check_nifti_payload(path);
+  check_declared_size(path, what);
+  auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
-  try {
-    reader->Update();
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(ExitCode::InputInvalid, path + ": cannot read mask: " + first_line(e.GetDescription()));
-  }
+  if (const std::string failed = try_update(reader); !failed.empty())
+    throw Error(ExitCode::InputInvalid, path + ": cannot read " + what + ": " + failed);
+  FloatImage::Pointer img = reader->GetOutput();
+  const float* buf = img->GetBufferPointer();
+  const std::size_t n = img->GetLargestPossibleRegion().GetNumberOfPixels();
+  std::size_t bad = 0;
+  for (std::size_t i = 0; i < n; ++i) bad += !std::isfinite(buf[i]);
+  if (bad) throw Error(ExitCode::InputInvalid, path + ": " + what + " has " + std::to_string(bad) + " NaN or infinite voxels");
+  return img;
+}
+}  // namespace
+
+Mask read_mask(const std::string& path) {
+  const FloatImage::Pointer img = read_float_image(path, "mask");
   Mask m;
-  m.geom = geometry_of(reader->GetOutput());
-  const auto* buf = reader->GetOutput()->GetBufferPointer();
+  m.geom = geometry_of(img.GetPointer());
+  const float* buf = img->GetBufferPointer();
   m.data.resize(m.geom.voxel_count());
   for (std::size_t i = 0; i < m.data.size(); ++i) m.data[i] = buf[i] != 0;
   return m;
 }
 
 LabelMap read_label_map(const std::string& path) {
-  register_factories();
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file");
-  if (::access(path.c_str(), R_OK) != 0) throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
-  if (volume_kind(path) == "nifti") check_nifti_payload(path);
-  auto reader = itk::ImageFileReader<FloatImage>::New();
-  reader->SetFileName(path);
-  try {
-    reader->Update();
-  } catch (const itk::ExceptionObject& e) {
-    throw Error(ExitCode::InputInvalid, path + ": cannot read label map: " + first_line(e.GetDescription()));
-  }
+  const FloatImage::Pointer img = read_float_image(path, "label map");
   LabelMap m;
-  m.geom = geometry_of(reader->GetOutput());
-  const float* buf = reader->GetOutput()->GetBufferPointer();
+  m.geom = geometry_of(img.GetPointer());
+  const float* buf = img->GetBufferPointer();
   m.labels.resize(m.geom.voxel_count());
-  for (std::size_t i = 0; i < m.labels.size(); ++i) m.labels[i] = static_cast<std::int32_t>(std::lround(buf[i]));
+  for (std::size_t i = 0; i < m.labels.size(); ++i) {
+    const float v = std::round(buf[i]);
+    if (std::abs(v) > 2.0e9f)
+      throw Error(ExitCode::InputInvalid, path + ": label map value " + std::to_string(v) + " is not a label");
+    m.labels[i] = static_cast<std::int32_t>(v);
+  }
   return m;
 }
 

@@ -587,6 +587,18 @@ TEST(BadInput, NiftiWithNaNs) {
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "NaN"});
 }
 
+TEST(BadInput, NiftiWithInvalidDataOffset) {  // found by fuzzing: a float-to-integer cast of -7e32
+  TempCase t;
+  const fs::path in = t / "offset.nii";
+  write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
+  std::fstream f(in, std::ios::in | std::ios::out | std::ios::binary);
+  const float bad = -7.25e32f;
+  f.seekp(108);
+  f.write(reinterpret_cast<const char*>(&bad), 4);
+  f.close();
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "vox_offset"});
+}
+
 TEST(BadInput, NiftiWithZeroSizedDimension) {
   TempCase t;
   const fs::path in = t / "zero.nii";
@@ -614,6 +626,30 @@ TEST(BadInput, NiftiHeaderOnlyNoData) {
   write_nifti(in, {32, 32, 32}, {});  // header promises 128 KiB of voxels, file ends at 352
   // KNOWN BUG (see report): read as all zeros without error; the run continues (exit 5).
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
+}
+
+// NRRD and MetaImage through ITK: the libraries' own stderr chatter (MetaIO
+// printed four lines per attempt) is caught, and the one line names the cause.
+TEST(BadInput, MalformedNrrdAndMetaImage) {
+  TempCase t;
+  struct Bad {
+    const char* name;
+    std::string text;
+    const char* says;
+  };
+  const std::string nrrd_head = "NRRD0004\ndimension: 3\nsizes: 16 16 16\ntype: short\nendian: little\n";
+  const std::vector<Bad> cases = {
+      {"no_dims.mha", "ObjectType = Image\nNDims = 3\nElementType = MET_FLOAT\nElementDataFile = LOCAL\nxx", "DimSize"},
+      {"not_gzip.nrrd", nrrd_head + "encoding: gzip\n\nnot gzip at all", "nrrd volume"},
+      {"short.nrrd", nrrd_head + "encoding: raw\n\nshort", "fread"},
+      {"terabytes.nrrd", "NRRD0004\ndimension: 3\nsizes: 100000 100000 100000\ntype: short\nencoding: raw\nendian: little\n\nx",
+       "declares"},
+  };
+  for (const Bad& b : cases) {
+    const fs::path in = t / b.name;
+    std::ofstream(in, std::ios::binary) << b.text;
+    expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), b.says});
+  }
 }
 
 // ---------------------------------------------------------------- usage

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <unistd.h>
 
@@ -116,6 +117,43 @@ TEST(NiftiMask, RoundTripKeepsGridAndValues) {
   const Mask back = io::read_mask((dir / "m.nii.gz").string());
   EXPECT_TRUE(back.geom.same_grid(m.geom, 1e-4));
   EXPECT_EQ(back.data, m.data);
+  fs::remove_all(dir);
+}
+
+// A float file used as a mask (a probability map, a CT by mistake) is
+// thresholded at != 0 on its own values, not narrowed to uint8 first (found
+// by fuzzing: ITK's float->uint8 conversion of -1000 is undefined behaviour,
+// and 0.4 became 0). Non-finite values and non-label values are refused.
+TEST(NiftiMask, FloatFileIsThresholdedOnItsOwnValues) {
+  const fs::path dir = temp_dir("fmask");
+  Volume v = test_volume(false);
+  for (std::size_t i = 0; i < v.hu.size(); ++i) v.hu[i] = i % 3 == 0 ? 0.0f : i % 3 == 1 ? -1000.0f : 0.4f;
+  for (const char* ext : {".nii.gz", ".nrrd"}) {
+    const std::string f = (dir / (std::string("p") + ext)).string();
+    io::write_volume(v, f);
+    const Mask m = io::read_mask(f);
+    ASSERT_EQ(m.data.size(), v.hu.size()) << ext;
+    for (std::size_t i = 0; i < m.data.size(); ++i) ASSERT_EQ(m.data[i], i % 3 == 0 ? 0 : 1) << ext << " voxel " << i;
+    const LabelMap l = io::read_label_map(f);
+    EXPECT_EQ(l.labels[1], -1000) << ext;
+    EXPECT_EQ(l.labels[2], 0) << ext;
+  }
+  v.hu[5] = std::numeric_limits<float>::quiet_NaN();
+  io::write_volume(v, (dir / "nan.nrrd").string());
+  v.hu[5] = 3e9f;
+  io::write_volume(v, (dir / "huge.nrrd").string());
+  auto refused = [&](auto read, const char* f) {
+    try {
+      read((dir / f).string());
+    } catch (const Error& e) {
+      return e.code() == ExitCode::InputInvalid;
+    }
+    return false;
+  };
+  EXPECT_TRUE(refused(io::read_mask, "nan.nrrd"));
+  EXPECT_TRUE(refused(io::read_label_map, "nan.nrrd"));
+  EXPECT_TRUE(refused(io::read_label_map, "huge.nrrd"));
+  EXPECT_EQ(io::read_mask((dir / "huge.nrrd").string()).data[5], 1);  // finite and != 0: inside
   fs::remove_all(dir);
 }
 

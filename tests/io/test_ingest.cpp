@@ -313,6 +313,48 @@ TEST(Ingest, VolumeFilesHonourOrientationOverride) {
   fs::remove_all(dir);
 }
 
+// A header can declare far more voxels than its file holds; ITK would
+// allocate all of them before reading one (found by fuzzing: terabytes from a
+// 200-byte NRRD). Refused with InputInvalid before any allocation, for
+// attached and detached headers, volumes and masks; a genuine gzip NRRD of a
+// constant volume (compressing ~200:1) still loads.
+TEST(Ingest, HeadersDeclaringMoreThanTheFileHoldsAreRefusedBeforeAllocating) {
+  const fs::path dir = temp_dir("declared");
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name, std::ios::binary) << text;
+    return (dir / name).string();
+  };
+  const std::string nrrd = write("big.nrrd",
+                                 "NRRD0004\ndimension: 3\nsizes: 100000 100000 100000\ntype: short\nendian: little\n"
+                                 "encoding: raw\n\n0123456789");
+  const std::string mha = write("big.mha",
+                                "ObjectType = Image\nNDims = 3\nDimSize = 4000 4000 4000\nElementType = MET_FLOAT\n"
+                                "ElementDataFile = LOCAL\n0123456789");
+  write("small.raw", std::string(2048, '\0'));
+  const std::string nhdr = write("detached.nhdr",
+                                 "NRRD0004\ndimension: 3\nsizes: 2000 2000 500\ntype: short\nendian: little\n"
+                                 "encoding: gzip\ndata file: small.raw\n");
+  for (const std::string& f : {nrrd, mha, nhdr}) {
+    for (int which = 0; which < 2; ++which) {
+      try {
+        if (which == 0) io::read_scan(f);
+        else io::read_label_map(f);
+        ADD_FAILURE() << f << " accepted";
+      } catch (const Error& e) {
+        EXPECT_EQ(e.code(), ExitCode::InputInvalid) << e.what();
+        EXPECT_NE(std::string(e.what()).find("declares"), std::string::npos) << e.what();
+      }
+    }
+  }
+  Volume v;
+  v.geom.size = {200, 200, 100};
+  v.hu.assign(v.geom.voxel_count(), -1000.0f);
+  io::write_volume(v, (dir / "constant.nrrd").string());
+  EXPECT_LT(fs::file_size(dir / "constant.nrrd"), 160000u);  // 16 MB of floats compressed > 100:1
+  EXPECT_EQ(io::read_scan((dir / "constant.nrrd").string()).volume.hu.size(), v.hu.size());
+  fs::remove_all(dir);
+}
+
 TEST(Ingest, HeadsqNrrdFromSharedDataLoads) {
   const std::string path = std::string(MANDISYM_SHARED_DATA) + "/headsq/quarter.nhdr";
   if (!fs::exists(path)) GTEST_SKIP() << "shared data not present";
