@@ -4,7 +4,6 @@
 // (e.g. an enhanced multi-frame file), pixel decoding and assembly. An
 // ms::Error is an accepted outcome; a crash, a sanitizer report, an uncaught
 // exception or a hang is a finding.
-#include <unistd.h>
 
 #include <cstdint>
 #include <filesystem>
@@ -19,10 +18,12 @@ namespace fs = std::filesystem;
 namespace dicom = ms::io::dicom;
 
 static const fs::path& workdir() {
+  // A fixed name: the path reaches the code under test (error messages), and
+  // libFuzzer's comparison tracing would make runs differ between machines.
   static const fs::path d = [] {
-    char tmpl[] = "/tmp/mandisym_fuzz_XXXXXX";
-    const char* p = mkdtemp(tmpl);
-    return fs::path(p ? p : "/tmp");
+    const fs::path p = fs::temp_directory_path() / "mandisym_fuzz_dicom";
+    fs::create_directories(p);
+    return p;
   }();
   return d;
 }

@@ -85,6 +85,9 @@ std::string lower(std::string s) {
 class StderrCapture {
  public:
   StderrCapture() {
+#ifdef MANDISYM_FUZZING
+    return;  // libFuzzer reports hangs and crashes on stderr while the reader runs
+#endif
     std::fflush(stderr);
     file_ = std::tmpfile();
     if (!file_) return;
@@ -153,6 +156,9 @@ std::string try_update(Reader& reader) {
     return "";
   } catch (const itk::ExceptionObject& e) {
     return describe_read_failure(e.GetDescription(), capture.first());
+  } catch (const std::exception& e) {  // e.g. std::length_error from a malformed header (found by fuzzing)
+    const std::string printed = capture.first();
+    return printed.empty() ? std::string("the reader failed (") + e.what() + ")" : printed;
   }
 }
 
@@ -302,6 +308,24 @@ void check_nifti_payload(const std::string& path) {
     if (n <= 0) throw Error(ExitCode::InputInvalid, path + ": NIfTI dimension " + std::to_string(d) + " has size " + std::to_string(n));
     nvox *= static_cast<std::uint64_t>(n);
   }
+  // The geometry fields ITK turns into a direction matrix: a NaN there made
+  // vnl's SVD abort the process (found by fuzzing). pixdim[1..ndim] always;
+  // the quaternion and offsets when qform_code > 0; the affine rows when sform_code > 0.
+  auto f32 = [&](int off) {
+    std::uint32_t v;
+    std::memcpy(&v, hdr + off, 4);
+    if (swap) v = __builtin_bswap32(v);
+    float x;
+    std::memcpy(&x, &v, 4);
+    return x;
+  };
+  auto all_finite = [&](int off, int n) {
+    for (int k = 0; k < n; ++k)
+      if (!std::isfinite(f32(off + 4 * k))) return false;
+    return true;
+  };
+  if (!all_finite(80, ndim) || (i16(252, swap) > 0 && !all_finite(256, 6)) || (i16(254, swap) > 0 && !all_finite(280, 12)))
+    throw Error(ExitCode::InputInvalid, path + ": NIfTI header has NaN or infinite voxel sizes or orientation");
   const int datatype = i16(70, swap), bitpix = i16(72, swap);
   float vox_offset;
   std::memcpy(&vox_offset, hdr + 108, 4);
@@ -396,7 +420,67 @@ std::string patched_nrrd_header(const std::string& path, std::string& note) {
 // can hold even at deflate's best ratio (~1032:1). The data files of detached
 // headers (.nhdr "data file:", .mhd "ElementDataFile") count when they name
 // one existing file; a file list or pattern is left to the memory check.
+// MetaIO trusts the header's NDims: it loops over it before checking it
+// (found by fuzzing: NDims = 3800000000000004 ran for minutes) and copies as
+// many numbers as a line holds into arrays sized by it (NDims = 1 with a
+// 9-number TransformMatrix corrupted the heap: "free(): invalid next size").
+// So NDims must be 1 to 4 and each geometry field must hold NDims (vectors) or
+// NDims^2 (matrices) numbers before ITK sees the file.
+void check_meta_header(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  long ndims = -1;
+  struct Field {
+    std::string name;
+    std::size_t count;
+    bool matrix;
+  };
+  std::vector<Field> fields;
+  for (int n = 0; n < 200 && std::getline(in, line); ++n) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (trim(line).empty()) continue;
+    // Every header line is "Key = Value" with a short word for a key: MetaIO
+    // reads everything up to the next '=' as the key and strcpy's it into a
+    // fixed buffer (found by fuzzing: a long line without '=' overflowed it).
+    const auto eq = line.find('=');
+    const std::string raw_key = eq == std::string::npos ? "" : trim(line.substr(0, eq));
+    const bool word = !raw_key.empty() && raw_key.size() <= 64 &&
+                      std::all_of(raw_key.begin(), raw_key.end(), [](unsigned char c) { return std::isalnum(c) || c == '_'; });
+    if (!word) throw Error(ExitCode::InputInvalid, path + ": MetaImage header line " + std::to_string(n + 1) + " is not 'Key = Value'");
+    const std::string key = lower(raw_key);
+    const std::string value = trim(line.substr(eq + 1));
+    if (key == "elementdatafile") break;
+    if (key == "ndims") {
+      char* end = nullptr;
+      ndims = std::strtol(value.c_str(), &end, 10);
+      if (value.empty() || trim(end) != "" || ndims < 1 || ndims > 4)
+        throw Error(ExitCode::InputInvalid, path + ": MetaImage header has NDims = " + value.substr(0, 24) + " (expected 1 to 4)");
+      continue;
+    }
+    static const char* const kVectors[] = {"dimsize", "elementspacing", "elementsize", "offset", "position", "origin",
+                                           "centerofrotation"};
+    static const char* const kMatrices[] = {"transformmatrix", "rotation", "orientation"};
+    bool vec = false, mat = false;
+    for (const char* k : kVectors) vec |= key == k;
+    for (const char* k : kMatrices) mat |= key == k;
+    if (!vec && !mat) continue;
+    std::istringstream numbers(value);
+    std::string tok;
+    std::size_t count = 0;
+    while (numbers >> tok) ++count;
+    fields.push_back({trim(line.substr(0, eq)), count, mat});
+  }
+  for (const auto& [name, count, mat] : fields) {
+    if (ndims < 0) throw Error(ExitCode::InputInvalid, path + ": MetaImage header has " + name + " before NDims");
+    const std::size_t want = mat ? static_cast<std::size_t>(ndims * ndims) : static_cast<std::size_t>(ndims);
+    if (count != want)
+      throw Error(ExitCode::InputInvalid, path + ": MetaImage header has " + std::to_string(count) + " numbers in " + name +
+                                              ", NDims = " + std::to_string(ndims) + " needs " + std::to_string(want));
+  }
+}
+
 void check_declared_size(const std::string& path, const char* what) {
+  if (volume_kind(path) == "meta") check_meta_header(path);
   StderrCapture quiet;  // the reader that follows reports any failure
   const itk::ImageIOBase::Pointer io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::CommonEnums::IOFileMode::ReadMode);
   if (!io) return;  // the reader says why
@@ -406,7 +490,7 @@ void check_declared_size(const std::string& path, const char* what) {
     io->ReadImageInformation();
     for (unsigned d = 0; d < io->GetNumberOfDimensions(); ++d) voxels *= static_cast<long double>(io->GetDimensions(d));
     stored = voxels * io->GetNumberOfComponents() * io->GetComponentSize();  // throws for an unknown pixel type
-  } catch (const itk::ExceptionObject&) {
+  } catch (const std::exception&) {  // itk::ExceptionObject or a library's std::length_error
     return;  // the reader says why
   }
   const long double memory = static_cast<long double>(::sysconf(_SC_PHYS_PAGES)) * ::sysconf(_SC_PAGE_SIZE);
@@ -419,7 +503,10 @@ void check_declared_size(const std::string& path, const char* what) {
   if (ec) return;
   std::ifstream in(path, std::ios::binary);
   std::string line;
-  for (int n = 0; n < 200 && std::getline(in, line); ++n) {
+  const std::string kind = volume_kind(path);
+  // Text headers only (NIfTI is binary: its bytes can spell anything).
+  for (int n = 0; (kind == "nrrd" || kind == "meta") && n < 200 && std::getline(in, line); ++n) {
+    if (line.empty() || line == "\r") break;  // end of an attached NRRD header
     const std::string l = lower(line);
     std::string name;
     if (l.rfind("data file:", 0) == 0 || l.rfind("datafile:", 0) == 0 || l.rfind("elementdatafile", 0) == 0)

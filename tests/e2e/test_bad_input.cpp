@@ -599,6 +599,21 @@ TEST(BadInput, NiftiWithInvalidDataOffset) {  // found by fuzzing: a float-to-in
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "vox_offset"});
 }
 
+TEST(BadInput, NiftiWithNaNOrientation) {  // found by fuzzing: vnl's SVD aborted inside ITK
+  TempCase t;
+  const fs::path in = t / "nan_affine.nii";
+  write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
+  std::fstream f(in, std::ios::in | std::ios::out | std::ios::binary);
+  const std::int16_t sform_code = 1;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  f.seekp(254);
+  f.write(reinterpret_cast<const char*>(&sform_code), 2);
+  f.seekp(280);
+  f.write(reinterpret_cast<const char*>(&nan), 4);
+  f.close();
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "orientation"});
+}
+
 TEST(BadInput, NiftiWithZeroSizedDimension) {
   TempCase t;
   const fs::path in = t / "zero.nii";
@@ -642,6 +657,11 @@ TEST(BadInput, MalformedNrrdAndMetaImage) {
       {"no_dims.mha", "ObjectType = Image\nNDims = 3\nElementType = MET_FLOAT\nElementDataFile = LOCAL\nxx", "DimSize"},
       {"not_gzip.nrrd", nrrd_head + "encoding: gzip\n\nnot gzip at all", "nrrd volume"},
       {"short.nrrd", nrrd_head + "encoding: raw\n\nshort", "fread"},
+      {"ndims.mha", "ObjectType = Image\nNDims = 3800000000000004\nDimSize = 3 5 4\nElementType = MET_FLOAT\nElementDataFile = LOCAL\nx",
+       "NDims"},  // MetaIO looped over NDims for minutes (found by fuzzing)
+      {"matrix.mha", "ObjectType = Image\nNDims = 1\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nDimSize = 4\nElementType = MET_FLOAT\n"
+                     "ElementDataFile = LOCAL\nxxxxxxxxxxxxxxxx",
+       "TransformMatrix"},  // MetaIO copied 9 numbers into a 1-number array: heap corruption, abort (fuzzing)
       {"terabytes.nrrd", "NRRD0004\ndimension: 3\nsizes: 100000 100000 100000\ntype: short\nencoding: raw\nendian: little\n\nx",
        "declares"},
   };

@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <zlib.h>
+
 #include "core/error.h"
 #include "io/dicom.h"
 #include "io/volume_io.h"
@@ -440,6 +442,37 @@ TEST(Ingest, SafeToParseRejectsWhatGdcmCannotTake) {
                                                                    element(0x5200, 0x9229, "SQ", "", 0xffffffffu) + item +
                                                                    std::string("\xfe\xff\xdd\xe0\0\0\0\0", 8))));
   }
+  // Deflated explicit VR little endian: the data set is inflated and walked
+  // (found by fuzzing: GDCM asserted on a deflate stream of junk).
+  {
+    auto deflate_raw = [](const std::string& in) {
+      z_stream z{};
+      deflateInit2(&z, Z_BEST_COMPRESSION, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY);
+      std::string out(in.size() + 256, '\0');
+      z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(in.data()));
+      z.avail_in = static_cast<uInt>(in.size());
+      z.next_out = reinterpret_cast<Bytef*>(out.data());
+      z.avail_out = static_cast<uInt>(out.size());
+      deflate(&z, Z_FINISH);
+      out.resize(z.total_out);
+      deflateEnd(&z);
+      return out;
+    };
+    const std::string dmeta = ms::testing::preamble() + element(0x0002, 0x0010, "UI", std::string("1.2.840.10008.1.2.1.99", 22));
+    const std::string data = element(0x0008, 0x0060, "CS", "CT") + element(0x0009, 0x1010, "OB", std::string(64, 'x'));
+    EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("deflated.dcm", dmeta + deflate_raw(data))));
+    std::string long_ob = data;
+    long_ob[long_ob.size() - 64 - 2] = '\x7f';  // the OB now declares ~2 GB
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("deflated_long.dcm", dmeta + deflate_raw(long_ob))));
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("deflated_junk.dcm", dmeta + "\x01\x02\x03 not a deflate stream")));
+  }
+  // A sequence delimiter in the other byte order (found by fuzzing: GDCM's
+  // workaround then read a 3.6 GB length from a 1 kB file).
+  EXPECT_FALSE(ms::io::dicom::safe_to_parse(write(
+      "swapped.dcm", meta + element(0x0008, 0x0060, "CS", "CT") + element(0x5200, 0x9229, "SQ", "", 0xffffffffu) +
+                         std::string("\xfe\xff\x00\xe0\xff\xff\xff\xff", 8) + element(0x0020, 0x0037, "DS", "1\\0\\0\\0\\1\\0 ") +
+                         std::string("\xfe\xff\x0d\xe0\0\0\0\0", 8) + std::string("\xff\xfe\xe0\xdd\0\0\0\0", 8) +
+                         element(0x0028, 0x0010, "US", std::string("\x08\0", 2)))));
   // Explicit VR big endian (retired, still met): walked in its byte order.
   {
     auto be = [](std::uint16_t g, std::uint16_t e, const char* vr, const std::string& v) {
@@ -460,6 +493,14 @@ TEST(Ingest, SafeToParseRejectsWhatGdcmCannotTake) {
     std::string bad = bbody;
     bad[bad.size() - 64 - 4] = '\x7f';  // the OB's big-endian length now ~2 GB
     EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("biglong.dcm", bad)));
+    // Without preamble and meta group (ACR-NEMA style): flat data sets only;
+    // a sequence sent GDCM into a vendor workaround that asserts (found by fuzzing).
+    const std::string flat = be(0x0008, 0x0060, "CS", "CT") + be(0x0009, 0x1010, "OB", std::string(64, 'x'));
+    EXPECT_TRUE(ms::io::dicom::safe_to_parse(write("bigflat.dcm", flat)));
+    const std::string sq = std::string("\x00\x08\x11\x40SQ\0\0\xff\xff\xff\xff", 12) + std::string("\xff\xfe\xe0\x00\xff\xff\xff\xff", 8) +
+                           be(0x0008, 0x1150, "UI", "1.2 ") + std::string("\xff\xfe\xe0\x0d\0\0\0\0", 8) +
+                           std::string("\xff\xfe\xe0\xdd\0\0\0\0", 8);
+    EXPECT_FALSE(ms::io::dicom::safe_to_parse(write("bigseq.dcm", be(0x0008, 0x0060, "CS", "CT") + sq)));
   }
   // Two letters that are not a VR (found by fuzzing: GDCM's recovery read a
   // 1.3 GB length).
