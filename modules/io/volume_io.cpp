@@ -327,14 +327,7 @@ void check_nifti_payload(const std::string& path) {
   if (!all_finite(80, ndim) || (i16(252, swap) > 0 && !all_finite(256, 6)) || (i16(254, swap) > 0 && !all_finite(280, 12)))
     throw Error(ExitCode::InputInvalid, path + ": NIfTI header has NaN or infinite voxel sizes or orientation");
   const int datatype = i16(70, swap), bitpix = i16(72, swap);
-  float vox_offset;
-  std::memcpy(&vox_offset, hdr + 108, 4);
-  if (swap) {
-    std::uint32_t v;
-    std::memcpy(&v, &vox_offset, 4);
-    v = __builtin_bswap32(v);
-    std::memcpy(&vox_offset, &v, 4);
-  }
+  const float vox_offset = f32(108);
   const bool single_file = std::memcmp(hdr + 344, "n+1", 3) == 0;
   if (!single_file || bitpix <= 0) return;  // .hdr/.img pairs: leave to ITK
   if (!std::isfinite(vox_offset) || vox_offset < 0 || vox_offset > 1e12f)  // found by fuzzing (cast of -7e32)
