@@ -423,6 +423,7 @@ void check_meta_header(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
   long ndims = -1;
+  std::string compressed;  // CompressedDataSize as written
   struct Field {
     std::string name;
     std::size_t count;
@@ -442,7 +443,27 @@ void check_meta_header(const std::string& path) {
     if (!word) throw Error(ExitCode::InputInvalid, path + ": MetaImage header line " + std::to_string(n + 1) + " is not 'Key = Value'");
     const std::string key = lower(raw_key);
     const std::string value = trim(line.substr(eq + 1));
-    if (key == "elementdatafile") break;
+    if (key == "elementdatafile") {
+      // MetaIO allocates CompressedDataSize bytes before reading them (found
+      // by fuzzing: 1.8e19): it must be one number no larger than the bytes
+      // on disk (this file and a named data file).
+      if (!compressed.empty()) {
+        std::error_code ec;
+        std::uintmax_t on_disk = fs::file_size(path, ec);
+        const fs::path data = fs::path(path).parent_path() / value;
+        if (lower(value) != "local" && fs::is_regular_file(data, ec)) on_disk += fs::file_size(data, ec);
+        char* end = nullptr;
+        const unsigned long long declared = std::strtoull(compressed.c_str(), &end, 10);
+        if (*end != '\0' || compressed[0] == '-' || declared > on_disk)
+          throw Error(ExitCode::InputInvalid, path + ": MetaImage header has CompressedDataSize = " + compressed.substr(0, 24) +
+                                                  ", more than the file holds");
+      }
+      break;
+    }
+    if (key == "compresseddatasize") {
+      compressed = value;
+      continue;
+    }
     if (key == "ndims") {
       char* end = nullptr;
       ndims = std::strtol(value.c_str(), &end, 10);

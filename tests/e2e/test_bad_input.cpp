@@ -662,6 +662,9 @@ TEST(BadInput, MalformedNrrdAndMetaImage) {
       {"matrix.mha", "ObjectType = Image\nNDims = 1\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nDimSize = 4\nElementType = MET_FLOAT\n"
                      "ElementDataFile = LOCAL\nxxxxxxxxxxxxxxxx",
        "TransformMatrix"},  // MetaIO copied 9 numbers into a 1-number array: heap corruption, abort (fuzzing)
+      {"compressed.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_FLOAT\nCompressedData = True\n"
+                         "CompressedDataSize = 17595999999999999996\nElementDataFile = LOCAL\nxx",
+       "CompressedDataSize"},  // MetaIO allocated 1.8e19 bytes (found by fuzzing)
       {"terabytes.nrrd", "NRRD0004\ndimension: 3\nsizes: 100000 100000 100000\ntype: short\nencoding: raw\nendian: little\n\nx",
        "declares"},
   };
