@@ -297,7 +297,11 @@ void check_nifti_payload(const std::string& path) {
   };
   bool swap = false;
   if (i32(0, false) != 348) {
-    if (i32(0, true) != 348) return;  // not NIfTI-1 (e.g. NIfTI-2): leave it to ITK
+    if (i32(0, false) == 540 || i32(0, true) == 540) return;  // NIfTI-2: left to ITK
+    // Neither: the NIfTI library still reads such a header (by its magic),
+    // unchecked; a NaN affine in one aborted it (found by fuzzing).
+    if (i32(0, true) != 348)
+      throw Error(ExitCode::InputInvalid, path + ": not a NIfTI-1 or NIfTI-2 header (sizeof_hdr " + std::to_string(i32(0, false)) + ")");
     swap = true;
   }
   const int ndim = i16(40, swap);
