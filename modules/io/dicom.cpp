@@ -93,9 +93,11 @@ class AbortGuard {
   }
   AbortGuard(const AbortGuard&) = delete;
   AbortGuard& operator=(const AbortGuard&) = delete;
+#ifndef MANDISYM_FUZZING
 
  private:
   bool owner_ = false;  // this guard redirected stderr (the outermost one)
+#endif
 };
 
 // Bounds-checked reading of the structure of a file (not of its values).
@@ -321,6 +323,28 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
   return Walk::Unsure;
 }
 
+// Inflates a raw deflate stream (no zlib header: DICOM's deflated transfer
+// syntax) into out, at most cap bytes. False for a stream that is not deflate
+// or inflates to nothing; a stream cut short keeps what it gave.
+bool inflate_raw(const std::string& packed, std::size_t cap, std::string& out) {
+  z_stream z{};
+  if (inflateInit2(&z, -15) != Z_OK) return false;
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(packed.data()));
+  z.avail_in = static_cast<uInt>(packed.size());
+  int rc = Z_OK;
+  while (rc == Z_OK && out.size() < cap) {
+    const std::size_t at = out.size();
+    out.resize(std::min(cap, at + (std::size_t{1} << 20)));
+    z.next_out = reinterpret_cast<Bytef*>(out.data() + at);
+    z.avail_out = static_cast<uInt>(out.size() - at);
+    rc = inflate(&z, Z_NO_FLUSH);
+    out.resize(out.size() - z.avail_out);
+    if (rc == Z_BUF_ERROR && z.avail_in == 0) break;  // the stream ends without its end marker
+  }
+  inflateEnd(&z);
+  return (rc == Z_STREAM_END || rc == Z_OK || rc == Z_BUF_ERROR) && !out.empty();
+}
+
 // False when the file cannot be handed to GDCM safely: it has the DICOM
 // preamble but its file meta group (0002) is not a sequence of complete
 // elements; or it has no preamble and does not start like a DICOM data set;
@@ -363,25 +387,8 @@ bool structure_ok(const std::string& file, std::uintmax_t size) {
     if (size - pos > (1u << 30)) return false;
     std::string packed(static_cast<std::size_t>(size - pos), '\0');
     if (!r.read(pos, reinterpret_cast<unsigned char*>(packed.data()), packed.size())) return false;
-    const std::size_t cap = std::min<std::size_t>(packed.size() * 1100 + 4096, std::size_t{1} << 30);
     std::string out;
-    z_stream z{};
-    if (inflateInit2(&z, -15) != Z_OK) return false;
-    z.next_in = reinterpret_cast<Bytef*>(packed.data());
-    z.avail_in = static_cast<uInt>(packed.size());
-    int rc = Z_OK;
-    while (rc == Z_OK && out.size() < cap) {
-      const std::size_t at = out.size();
-      out.resize(std::min(cap, at + (std::size_t{1} << 20)));
-      z.next_out = reinterpret_cast<Bytef*>(out.data() + at);
-      z.avail_out = static_cast<uInt>(out.size() - at);
-      rc = inflate(&z, Z_NO_FLUSH);
-      out.resize(out.size() - z.avail_out);
-      if (rc == Z_BUF_ERROR && z.avail_in == 0) break;  // stream ends without its end marker
-    }
-    inflateEnd(&z);
-    if (rc != Z_STREAM_END && rc != Z_OK && rc != Z_BUF_ERROR) return false;
-    if (out.empty()) return false;
+    if (!inflate_raw(packed, std::min<std::size_t>(packed.size() * 1100 + 4096, std::size_t{1} << 30), out)) return false;
     ByteReader m;
     m.memory = std::move(out);
     m.size = m.memory.size();

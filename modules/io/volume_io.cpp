@@ -22,6 +22,7 @@
 #include <iomanip>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -85,14 +86,13 @@ std::string lower(std::string s) {
 class StderrCapture {
  public:
   StderrCapture() {
-#ifdef MANDISYM_FUZZING
-    return;  // libFuzzer reports hangs and crashes on stderr while the reader runs
-#endif
+#ifndef MANDISYM_FUZZING  // under libFuzzer its own reports must reach stderr
     std::fflush(stderr);
     file_ = std::tmpfile();
     if (!file_) return;
     saved_ = ::dup(2);
     if (saved_ < 0 || ::dup2(::fileno(file_), 2) < 0) restore();
+#endif
   }
   ~StderrCapture() {
     restore();
@@ -410,6 +410,32 @@ std::string patched_nrrd_header(const std::string& path, std::string& note) {
   return o ? tmp.string() : "";
 }
 
+// Bytes a volume occupies on disk: the header file plus, for a detached
+// header (NRRD "data file:", MetaImage "ElementDataFile"), the one data file
+// it names. Empty when that is a list, a pattern or a missing file. NIfTI is
+// binary (its bytes can spell anything), so only its own size counts.
+std::optional<std::uintmax_t> bytes_on_disk(const std::string& path) {
+  std::error_code ec;
+  std::uintmax_t bytes = fs::file_size(path, ec);
+  if (ec) return std::nullopt;
+  const std::string kind = volume_kind(path);
+  if (kind != "nrrd" && kind != "meta") return bytes;
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  for (int n = 0; n < 200 && std::getline(in, line); ++n) {
+    if (line.empty() || line == "\r") break;  // end of an attached NRRD header
+    const std::string l = lower(line);
+    if (!(l.rfind("data file:", 0) == 0 || l.rfind("datafile:", 0) == 0 || l.rfind("elementdatafile", 0) == 0)) continue;
+    const std::string name = trim(line.substr(line.find_first_of(":=") + 1));
+    if (name.empty() || lower(name) == "local") break;
+    const fs::path data = fs::path(name).is_absolute() ? fs::path(name) : fs::path(path).parent_path() / name;
+    const auto more = fs::file_size(data, ec);
+    if (ec) return std::nullopt;
+    return bytes + more;
+  }
+  return bytes;
+}
+
 // What a volume header declares, checked before ITK allocates it (found by
 // fuzzing: a 200-byte NRRD or MetaImage header can declare terabytes, and ITK
 // allocates the whole image before it reads a voxel). Refused: more voxels
@@ -452,13 +478,10 @@ void check_meta_header(const std::string& path) {
       // by fuzzing: 1.8e19): it must be one number no larger than the bytes
       // on disk (this file and a named data file).
       if (!compressed.empty()) {
-        std::error_code ec;
-        std::uintmax_t on_disk = fs::file_size(path, ec);
-        const fs::path data = fs::path(path).parent_path() / value;
-        if (lower(value) != "local" && fs::is_regular_file(data, ec)) on_disk += fs::file_size(data, ec);
+        const auto on_disk = bytes_on_disk(path);
         char* end = nullptr;
         const unsigned long long declared = std::strtoull(compressed.c_str(), &end, 10);
-        if (*end != '\0' || compressed[0] == '-' || declared > on_disk)
+        if (*end != '\0' || compressed[0] == '-' || (on_disk && declared > *on_disk))
           throw Error(ExitCode::InputInvalid, path + ": MetaImage header has CompressedDataSize = " + compressed.substr(0, 24) +
                                                   ", more than the file holds");
       }
@@ -498,7 +521,6 @@ void check_meta_header(const std::string& path) {
 }
 
 void check_declared_size(const std::string& path, const char* what) {
-  if (volume_kind(path) == "meta") check_meta_header(path);
   StderrCapture quiet;  // the reader that follows reports any failure
   const itk::ImageIOBase::Pointer io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::CommonEnums::IOFileMode::ReadMode);
   if (!io) return;  // the reader says why
@@ -516,36 +538,24 @@ void check_declared_size(const std::string& path, const char* what) {
   if (memory > 0 && voxels * sizeof(float) + stored > memory)
     throw Error(ExitCode::InputInvalid, path + ": " + what + " header declares " + mb(voxels * sizeof(float)) +
                                             " of voxels, more than this machine's memory (" + mb(memory) + ")");
-  std::error_code ec;
-  long double on_disk = static_cast<long double>(fs::file_size(path, ec));
-  if (ec) return;
-  std::ifstream in(path, std::ios::binary);
-  std::string line;
-  const std::string kind = volume_kind(path);
-  // Text headers only (NIfTI is binary: its bytes can spell anything).
-  for (int n = 0; (kind == "nrrd" || kind == "meta") && n < 200 && std::getline(in, line); ++n) {
-    if (line.empty() || line == "\r") break;  // end of an attached NRRD header
-    const std::string l = lower(line);
-    std::string name;
-    if (l.rfind("data file:", 0) == 0 || l.rfind("datafile:", 0) == 0 || l.rfind("elementdatafile", 0) == 0)
-      name = trim(line.substr(line.find_first_of(":=") + 1));
-    if (name.empty()) continue;
-    if (lower(name) == "local") break;
-    const fs::path data = fs::path(name).is_absolute() ? fs::path(name) : fs::path(path).parent_path() / name;
-    const auto bytes = fs::file_size(data, ec);
-    if (ec) return;  // a list, a pattern or a missing file: the reader decides
-    on_disk += static_cast<long double>(bytes);
-    break;
-  }
+  const auto on_disk = bytes_on_disk(path);
+  if (!on_disk) return;  // a list, a pattern or a missing data file: the reader decides
   constexpr long double kMaxInflation = 1100;
-  if (stored > kMaxInflation * std::max<long double>(on_disk, 1))
+  if (stored > kMaxInflation * std::max<long double>(static_cast<long double>(*on_disk), 1))
     throw Error(ExitCode::InputInvalid, path + ": " + what + " header declares " + mb(stored) + " of voxel data but the file" +
-                                            " holds " + std::to_string(static_cast<long long>(on_disk)) + " bytes");
+                                            " holds " + std::to_string(*on_disk) + " bytes");
+}
+
+// Everything checked before ITK reads a volume file (masks and label maps too).
+void check_before_reading(const std::string& path, const char* what) {
+  const std::string kind = volume_kind(path);
+  if (kind == "nifti") check_nifti_payload(path);
+  if (kind == "meta") check_meta_header(path);
+  check_declared_size(path, what);
 }
 
 LoadedScan read_volume_file(const std::string& path, const std::string& kind) {
-  if (kind == "nifti") check_nifti_payload(path);
-  check_declared_size(path, "volume");
+  check_before_reading(path, "volume");
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
   std::string note;
@@ -665,8 +675,7 @@ FloatImage::Pointer read_float_image(const std::string& path, const char* what) 
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file");
   if (::access(path.c_str(), R_OK) != 0) throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
-  if (volume_kind(path) == "nifti") check_nifti_payload(path);
-  check_declared_size(path, what);
+  check_before_reading(path, what);
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
   if (const std::string failed = try_update(reader); !failed.empty())
