@@ -124,6 +124,53 @@ static void close_binary(float* buf, const int dims[3], const double spacing[3],
   for (std::size_t i = 0; i < m.size(); ++i) buf[i] = m[i] ? 1.0f : 0.0f;
 }
 
+// Bins per axis for contouring (Options::max_contour_spacing_mm): the most
+// with f * spacing <= max_contour_spacing_mm whose box blur ((f^2 - 1) / 12
+// spacing^2, the variance of f point samples) is at most half the Gaussian's.
+static std::array<int, 3> contour_bins(const Vec3& spacing, const Options& opt) {
+  std::array<int, 3> f{1, 1, 1};
+  if (opt.max_contour_spacing_mm <= 0) return f;
+  const double var = opt.smoothing_sigma_mm * opt.smoothing_sigma_mm;
+  for (int a = 0; a < 3; ++a)
+    while ((f[a] + 1) * spacing[a] <= opt.max_contour_spacing_mm + 1e-9 &&
+           ((f[a] + 1) * (f[a] + 1) - 1) / 12.0 * spacing[a] * spacing[a] <= 0.5 * var)
+      ++f[a];
+  return f;
+}
+
+// Mean of each f[0] x f[1] x f[2] block of img (blocks past the end average
+// the voxels they hold), on a grid whose voxel I is centred where its block
+// is: origin (f - 1) / 2 voxels in, spacing f voxels.
+static vtkSmartPointer<vtkImageData> binned(vtkImageData* img, const std::array<int, 3>& f) {
+  int d[3];
+  img->GetDimensions(d);
+  double s[3], o[3];
+  img->GetSpacing(s);
+  img->GetOrigin(o);
+  int n[3];
+  for (int a = 0; a < 3; ++a) n[a] = (d[a] + f[a] - 1) / f[a];
+  auto out = Ptr<vtkImageData>::New();
+  out->SetDimensions(n);
+  out->SetSpacing(f[0] * s[0], f[1] * s[1], f[2] * s[2]);
+  out->SetOrigin(o[0] + 0.5 * (f[0] - 1) * s[0], o[1] + 0.5 * (f[1] - 1) * s[1], o[2] + 0.5 * (f[2] - 1) * s[2]);
+  out->AllocateScalars(VTK_FLOAT, 1);
+  const auto* in = static_cast<const float*>(img->GetScalarPointer());
+  auto* b = static_cast<float*>(out->GetScalarPointer());
+  const std::size_t dx = static_cast<std::size_t>(d[0]), dxy = dx * static_cast<std::size_t>(d[1]);
+  for (int K = 0; K < n[2]; ++K)
+    for (int J = 0; J < n[1]; ++J)
+      for (int I = 0; I < n[0]; ++I) {
+        float sum = 0;
+        int count = 0;
+        for (int k = K * f[2]; k < std::min(d[2], (K + 1) * f[2]); ++k)
+          for (int j = J * f[1]; j < std::min(d[1], (J + 1) * f[1]); ++j)
+            for (int i = I * f[0]; i < std::min(d[0], (I + 1) * f[0]); ++i, ++count)
+              sum += in[static_cast<std::size_t>(i) + dx * static_cast<std::size_t>(j) + dxy * static_cast<std::size_t>(k)];
+        b[I + static_cast<std::size_t>(n[0]) * (J + static_cast<std::size_t>(n[1]) * K)] = sum / static_cast<float>(count);
+      }
+  return out;
+}
+
 // Flying-edges surface of a mask (after the optional closing), in index-space
 // millimetres of a crop starting pad voxels before index lo.
 struct Contour {
@@ -149,7 +196,9 @@ static Contour contour(const Mask& mask, const Options& opt) {
           }
         }
   if (hi[0] < 0) throw Error(ExitCode::GeometryFailed, "mandible mask is empty: no surface to build");
-  const long pad = 3 + static_cast<long>(std::ceil(opt.close_handles_mm / std::min({g.spacing[0], g.spacing[1], g.spacing[2]})));
+  const std::array<int, 3> f = contour_bins(g.spacing, opt);
+  const long pad = 3 * std::max({f[0], f[1], f[2]}) +
+                   static_cast<long>(std::ceil(opt.close_handles_mm / std::min({g.spacing[0], g.spacing[1], g.spacing[2]})));
   int dims[3];
   for (int a = 0; a < 3; ++a) dims[a] = static_cast<int>(hi[a] - lo[a] + 1 + 2 * pad);
   auto img = Ptr<vtkImageData>::New();
@@ -168,11 +217,17 @@ static Contour contour(const Mask& mask, const Options& opt) {
   // Morphological closing by a ball of this radius (mm): fills the narrow
   // gaps that make handles, e.g. between teeth in contact.
   if (opt.close_handles_mm > 0) close_binary(buf, dims, g.spacing.data(), opt.close_handles_mm);
+  // Fine masks: bin-average, then smooth by what the bins did not.
+  std::array<double, 3> sigma_vox{};
+  for (int a = 0; a < 3; ++a) {
+    const double box_var = (f[a] * f[a] - 1) / 12.0 * g.spacing[a] * g.spacing[a];
+    sigma_vox[a] = std::sqrt(std::max(0.0, opt.smoothing_sigma_mm * opt.smoothing_sigma_mm - box_var)) / (f[a] * g.spacing[a]);
+  }
+  if (f[0] * f[1] * f[2] > 1) img = binned(img, f);
   auto smooth = Ptr<vtkImageGaussianSmooth>::New();
   smooth->SetInputData(img);
   smooth->SetDimensionality(3);
-  smooth->SetStandardDeviations(opt.smoothing_sigma_mm / g.spacing[0], opt.smoothing_sigma_mm / g.spacing[1],
-                                opt.smoothing_sigma_mm / g.spacing[2]);
+  smooth->SetStandardDeviations(sigma_vox[0], sigma_vox[1], sigma_vox[2]);
   smooth->SetRadiusFactors(3, 3, 3);
   auto fe = Ptr<vtkFlyingEdges3D>::New();
   fe->SetInputConnection(smooth->GetOutputPort());

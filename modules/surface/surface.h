@@ -15,6 +15,13 @@ namespace ms::surface {
 
 struct Options {
   double smoothing_sigma_mm = 0.6;  // Gaussian pre-smoothing of the binary mask
+  // Masks finer than this (mm) are contoured on a bin-averaged grid of at
+  // most this spacing (integer bins per axis), with the Gaussian narrowed so
+  // that bin and Gaussian together smooth by smoothing_sigma_mm; only bins
+  // whose own blur stays within half the smoothing's variance are used, so a
+  // near-zero sigma keeps the voxel boundary (0 = always full resolution;
+  // docs/surface.md, "Fine masks").
+  double max_contour_spacing_mm = 1.0;
   double close_handles_mm = 0;      // closing radius before meshing (0 = none)
   // When the surface has handles (genus > 0) and close_handles_mm is 0, mesh
   // again with a closing of 1, 2, then 3 mm (radii below the voxel size are

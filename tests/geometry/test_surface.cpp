@@ -250,6 +250,36 @@ TEST(Surface, RemeshedEllipsoidIsIsotropicAndStaysOnTheMask) {
   }
 }
 
+// Masks finer than max_contour_spacing_mm are contoured on a bin-averaged grid
+// (2 x 2 x 2 here): the same smoothing in total, a quarter of the triangles,
+// and the surface where the full-resolution contour puts it.
+TEST(Surface, FineMaskIsContouredOnABinnedGridInTheSamePlace) {
+  const Ellipsoid e;
+  const Vec3 fine{0.35, 0.4, 0.45};
+  const ms::Mask mask = ellipsoid_mask(e, fine, rotation(kAxis, kAngle));
+  ms::surface::Options raw;  // contours only: no decimation, no remeshing
+  raw.target_faces = 0;
+  raw.target_edge_mm = 0;
+  ms::surface::Options full = raw;
+  full.max_contour_spacing_mm = 0;
+  const auto rb = ms::surface::mesh_from_mask(mask, raw);
+  const auto rf = ms::surface::mesh_from_mask(mask, full);
+  std::printf("contour faces: binned %zu, full resolution %zu; volume %.1f / %.1f mm3 (analytic %.1f)\n", rb.stats.faces,
+              rf.stats.faces, rb.stats.volume_mm3, rf.stats.volume_mm3, e.volume());
+  EXPECT_LT(rb.stats.faces, rf.stats.faces / 3);
+  EXPECT_TRUE(rb.stats.closed);
+  EXPECT_EQ(rb.stats.genus, 0);
+  EXPECT_NEAR(rb.stats.volume_mm3, rf.stats.volume_mm3, 0.005 * rf.stats.volume_mm3);
+  // The pipeline's defaults (decimation, remeshing) on the fine mask.
+  const auto r = ms::surface::mesh_from_mask(mask);
+  EXPECT_TRUE(r.stats.closed);
+  EXPECT_EQ(r.stats.genus, 0);
+  EXPECT_NEAR(r.stats.volume_mm3, e.volume(), 0.02 * e.volume());
+  const double worst = max_distance_to_mask_boundary(r.mesh, mask);
+  std::printf("largest vertex distance to the mask boundary: %.3f mm (voxel %.2f mm)\n", worst, fine[2]);
+  EXPECT_LE(worst, fine[2]);
+}
+
 TEST(Surface, PhantomMandibleIsWatertightAndOnTheMask) {
   ms::phantom::PhantomParams p;
   p.spacing = {1.0, 1.0, 1.0};
