@@ -263,6 +263,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.parameters["bone_threshold_hu"] = num(so.bone_threshold_hu);
   S.parameters["surface_smoothing_sigma_mm"] = num(mo.smoothing_sigma_mm);
   S.parameters["surface_target_faces"] = std::to_string(mo.target_faces);
+  S.parameters["surface_max_contour_spacing_mm"] = num(mo.max_contour_spacing_mm);
   S.parameters["saf_disk_radius_mm"] = num(sao.disk_radius_mm);
   S.parameters["saf_smoothing_mm"] = num(sao.smoothing_mm);
   S.parameters["saf_anchors"] = anchor_choice;

@@ -13,6 +13,7 @@
 #include <limits>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <set>
 
 #include "core/distance_transform.h"
@@ -100,6 +101,7 @@ double estimate_offset(const Volume& ct, std::size_t* soft_voxels) {
 
 struct Features {
   std::size_t voxels = 0;
+  double located = 1.0;  // fraction inside the located region (1 when none is given)
   Vec3 lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30}, sum{0, 0, 0};
   Vec3 centroid() const { return (1.0 / static_cast<double>(voxels)) * sum; }
   double extent(int a) const { return hi[a] - lo[a]; }
@@ -139,12 +141,14 @@ std::vector<Features> component_features(const LabelImage* labels, unsigned n, c
 // (antero-posterior) and tall enough to hold body, rami and condyles, not
 // larger than a mandible can be; the lowest such (the skull and maxilla lie above it;
 // clavicles are neither deep nor tall; spine and hyoid are narrow or small).
-unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double shrink_mm) {
+// On a crop around a mandible located on a coarser grid, only cores at least
+// min_located inside that region qualify (Options::locate_outside_fraction).
+unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double shrink_mm, double min_located) {
   unsigned best = 0;
   double best_z = 1e30;
   for (unsigned l = 1; l < f.size(); ++l) {
     const Features& c = f[l];
-    if (c.voxels == 0) continue;
+    if (c.voxels == 0 || c.located < min_located) continue;
     const double vol_cm3 = c.voxels * voxel_mm3 / 1000.0;
     const double w = c.extent(0) + 2 * shrink_mm, d = c.extent(1) + 2 * shrink_mm, h = c.extent(2) + 2 * shrink_mm;
     // A mandible with teeth is at most ~120 cm3: a larger core is still fused to the skull.
@@ -184,7 +188,10 @@ typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionTy
 // (face-connected, or face+edge+vertex when fully_connected) that do not
 // reach a face of the grid. What ITK's BinaryFillholeImageFilter does, without
 // the shape label map it builds on the way (perimeters of every component).
-MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
+// opens(i, j, k), when given, says whether a voxel on a face of the grid lets
+// its component out (a crop's face inside a cavity of the whole scan does not).
+MaskImage::Pointer filled(const MaskImage* in, bool fully_connected,
+                          const std::function<bool(std::size_t, std::size_t, std::size_t)>& opens = {}) {
   const auto size = in->GetLargestPossibleRegion().GetSize();
   const Dims3 d{size[0], size[1], size[2]};
   const std::size_t n = d[0] * d[1] * d[2];
@@ -205,10 +212,8 @@ MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
     for (std::size_t j = 0; j < d[1]; ++j) {
       const bool face = k == 0 || j == 0 || k + 1 == d[2] || j + 1 == d[1];
       const std::size_t row = d[0] * (j + d[1] * k);
-      if (face)
-        for (std::size_t i = 0; i < d[0]; ++i) open[lab[row + i]] = 1;
-      else
-        open[lab[row]] = open[lab[row + d[0] - 1]] = 1;
+      for (std::size_t i = 0; i < d[0]; i += face ? 1 : std::max<std::size_t>(1, d[0] - 1))
+        if (!opens || opens(i, j, k)) open[lab[row + i]] = 1;
     }
   auto out = MaskImage::New();
   out->CopyInformation(in);
@@ -273,19 +278,20 @@ void insert(const std::vector<T>& part, const Box& b, T* grid, const Dims3& dims
 // next to a marker enter a hierarchical queue at their level; the lowest is
 // taken and its unlabelled neighbours take its label, entering the queue at
 // their own level or, when lower, at the current one (first in, first out
-// within a level). Levels are quantised to 2^16 steps over their range. Voxels
+// within a level). Levels are quantised to 2^16 steps over [lo, hi], a range
+// fixed by the landscape's definition, not by the voxels at hand: a crop of
+// the grid then floods in the same order as the whole grid (near-equal
+// saddles, e.g. crowns in occlusion, are decided the same way). Voxels
 // outside `inside` and not reached keep label 0. Linear in the voxels flooded.
 std::vector<unsigned> watershed_from_markers(const std::vector<float>& level, const std::uint8_t* inside,
-                                             const unsigned* markers, const Geometry& g) {
+                                             const unsigned* markers, const Geometry& g, float lo, float hi) {
   const std::size_t n = g.voxel_count();
   std::vector<unsigned> label(markers, markers + n);
-  float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
-  for (std::size_t i = 0; i < n; ++i)
-    if (inside[i]) lo = std::min(lo, level[i]), hi = std::max(hi, level[i]);
-  if (!(lo <= hi)) return label;
   constexpr std::size_t kLevels = 1u << 16;
-  const double scale = hi > lo ? (kLevels - 1) / (static_cast<double>(hi) - lo) : 0.0;
-  auto bucket = [&](std::size_t i) { return static_cast<std::size_t>((static_cast<double>(level[i]) - lo) * scale + 0.5); };
+  const double scale = (kLevels - 1) / (static_cast<double>(hi) - lo);
+  auto bucket = [&](std::size_t i) {
+    return static_cast<std::size_t>(std::clamp((static_cast<double>(level[i]) - lo) * scale + 0.5, 0.0, kLevels - 1.0));
+  };
   std::vector<std::vector<std::size_t>> queue(kLevels);
   const long nx = static_cast<long>(g.size[0]), ny = static_cast<long>(g.size[1]), nz = static_cast<long>(g.size[2]);
   const long step[3] = {1, nx, nx * ny};
@@ -323,6 +329,27 @@ std::vector<unsigned> watershed_from_markers(const std::vector<float>& level, co
 
 }  // namespace
 
+// What a grid's segmentation needs to know beyond its voxels.
+struct GridContext {
+  double native_max_spacing = 0;  // the scan's own coarsest spacing (the grid may be finer)
+  // Calibration offset (HU) estimated on the whole scan; NaN: estimate on this grid.
+  double offset_hu = std::numeric_limits<double>::quiet_NaN();
+  // Faces of this grid that cut through the scan (a crop, not the scan's
+  // edge), as {-x, +x, -y, +y, -z, +z}: bone cut there belongs to something
+  // larger outside and is never a fragment of the mandible.
+  std::array<bool, 6> cut{};
+  // The mandible's region as located on a coarser grid (LPS geometry), or
+  // null: on a crop, only cores inside it can be the mandible.
+  const Mask* located = nullptr;
+  // The whole scan's filled bone mask on that coarser grid: background on a
+  // cut face lets a cavity out (of the bone and of the dense-bone solid) only
+  // where the whole scan's does (a cancellous core, a sinus or the cranial
+  // cavity cut by the crop stays enclosed). Not the coarse dense-bone mask:
+  // bin-averaging thins a cortex below the dense threshold, so it leaks.
+  const Mask* whole_filled = nullptr;
+  bool keep_fill = false;  // record this grid's filled bone mask in Separated
+};
+
 // Steps 1-5 of docs/segmentation.md on one grid: the mandible's region and the
 // other bones' regions (watershed), on the bone bounding box.
 struct Separated {
@@ -331,6 +358,7 @@ struct Separated {
   std::vector<std::uint8_t> mand;    // mandible region (bone, before surface placement)
   std::vector<std::uint8_t> other;   // bone given to other markers
   bool separated = false;
+  Mask bone_filled;                  // on cg, when GridContext::keep_fill
   Result info;                       // method, offsets, warnings, radius, marker source
 };
 
@@ -339,8 +367,23 @@ struct Separated {
 // mandible's (growing) region outnumber its contacts with any other single
 // region; repeated until nothing joins (a fragment of a fragment).
 static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, const MaskImage::PixelType* bone,
-                                            const Geometry& g, unsigned n, unsigned mand, std::size_t max_voxels) {
+                                            const Geometry& g, unsigned n, unsigned mand, std::size_t max_voxels,
+                                            const std::array<bool, 6>& cut) {
   std::vector<bool> joined(n + 1, false);
+  // Regions with bone on a cut face of the grid are parts of larger bones.
+  std::vector<bool> on_cut(n + 1, false);
+  for (int a = 0; a < 3; ++a)
+    for (int side = 0; side < 2; ++side) {
+      if (!cut[2 * a + side]) continue;
+      const int b = (a + 1) % 3, c = (a + 2) % 3;
+      std::size_t v[3];
+      v[a] = side ? g.size[a] - 1 : 0;
+      for (v[c] = 0; v[c] < g.size[c]; ++v[c])
+        for (v[b] = 0; v[b] < g.size[b]; ++v[b]) {
+          const std::size_t idx = g.linear(v[0], v[1], v[2]);
+          if (bone[idx] && w[idx] != 0 && w[idx] <= n) on_cut[w[idx]] = true;
+        }
+    }
   joined[mand] = true;
   std::vector<std::size_t> size(n + 1, 0);
   std::map<std::pair<unsigned, unsigned>, std::size_t> contact;  // (a < b) -> face count
@@ -362,7 +405,7 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
   for (bool changed = true; changed;) {
     changed = false;
     for (unsigned l = 1; l <= n; ++l) {
-      if (joined[l] || size[l] == 0 || size[l] > max_voxels) continue;
+      if (joined[l] || on_cut[l] || size[l] == 0 || size[l] > max_voxels) continue;
       std::size_t with_mandible = 0, best_other = 0;
       std::map<unsigned, std::size_t> others;
       for (const auto& [key, cnt] : contact) {
@@ -381,14 +424,15 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
   return joined;
 }
 
-static Separated separate(const Volume& ct, const Options& opt, double native_max_spacing) {
+static Separated separate(const Volume& ct, const Options& opt, const GridContext& ctx) {
   Separated out;
   Result& r = out.info;
   DebugLap lap;
   const Geometry& g = ct.geom;
+  const double native_max_spacing = ctx.native_max_spacing;
   r.method = "auto";
   std::size_t soft = 0;
-  const double offset = estimate_offset(ct, &soft);
+  const double offset = std::isnan(ctx.offset_hu) ? estimate_offset(ct, &soft) : ctx.offset_hu;
   if (std::abs(offset) > 50)
     r.warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(40 + offset))) +
                          " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
@@ -420,9 +464,33 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
   }
   MaskImage::Pointer bone = crop<MaskImage>(full.GetPointer(), region);
   full = nullptr;
-  bone = filled(bone.GetPointer(), true);
-  lap("bone mask, crop, fill");
   const Geometry cg = io::geometry_of(bone.GetPointer());
+  std::array<bool, 6> crop_cut{};  // faces of the bone crop on cut faces of the grid
+  for (int a = 0; a < 3; ++a) {
+    crop_cut[2 * a] = ctx.cut[2 * a] && region.GetIndex()[a] == 0;
+    crop_cut[2 * a + 1] = ctx.cut[2 * a + 1] && region.GetIndex()[a] + static_cast<long>(region.GetSize()[a]) == long(g.size[a]);
+  }
+  // Which face voxels let a cavity out: all, but on a cut face only those
+  // outside the whole scan's filled mask.
+  auto opens_per = [&](const Mask* whole) -> std::function<bool(std::size_t, std::size_t, std::size_t)> {
+    if (!whole) return {};
+    return [&cg, &crop_cut, whole](std::size_t i, std::size_t j, std::size_t k) {
+      const bool on_cut = (crop_cut[0] && i == 0) || (crop_cut[1] && i + 1 == cg.size[0]) || (crop_cut[2] && j == 0) ||
+                          (crop_cut[3] && j + 1 == cg.size[1]) || (crop_cut[4] && k == 0) || (crop_cut[5] && k + 1 == cg.size[2]);
+      if (!on_cut) return true;
+      const Vec3 q = whole->geom.lps_to_index(cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+      const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
+      if (x < 0 || y < 0 || z < 0 || x >= long(whole->geom.size[0]) || y >= long(whole->geom.size[1]) || z >= long(whole->geom.size[2]))
+        return true;
+      return whole->data[whole->geom.linear(x, y, z)] == 0;
+    };
+  };
+  bone = filled(bone.GetPointer(), true, opens_per(ctx.whole_filled));
+  if (ctx.keep_fill) {
+    out.bone_filled.geom = cg;
+    out.bone_filled.data.assign(bone->GetBufferPointer(), bone->GetBufferPointer() + cg.voxel_count());
+  }
+  lap("bone mask, crop, fill");
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
   const std::vector<float> hu_crop = crop_values(ct, region, cg);
@@ -437,6 +505,23 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
   // Depth inside a solid (mm), computed once per solid and thresholded at
   // each tried core depth.
   const Dims3 cdims = cg.size;
+  // Voxels of the crop inside the located region (nearest coarse voxel).
+  std::vector<std::uint8_t> in_located;
+  const double min_located = ctx.located ? 1.0 - opt.locate_outside_fraction : 0.0;
+  if (ctx.located) {
+    const Mask& L = *ctx.located;
+    in_located.assign(cg.voxel_count(), 0);
+    const long nz = static_cast<long>(cdims[2]);
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < nz; ++k)
+      for (std::size_t j = 0; j < cdims[1]; ++j)
+        for (std::size_t i = 0; i < cdims[0]; ++i) {
+          const Vec3 q = L.geom.lps_to_index(cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+          const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
+          if (x >= 0 && y >= 0 && z >= 0 && x < long(L.geom.size[0]) && y < long(L.geom.size[1]) && z < long(L.geom.size[2]))
+            in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = L.data[L.geom.linear(x, y, z)];
+        }
+  }
   auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
   auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
@@ -451,6 +536,14 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     relabel->Update();
     *n_out = static_cast<unsigned>(relabel->GetNumberOfObjects());
     *f_out = component_features(relabel->GetOutput(), *n_out, cg);
+    if (!in_located.empty()) {
+      std::vector<std::size_t> inside(*n_out + 1, 0);
+      const auto* lab = relabel->GetOutput()->GetBufferPointer();
+      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+        if (lab[i]) inside[lab[i]] += in_located[i];
+      for (unsigned l = 1; l <= *n_out; ++l)
+        (*f_out)[l].located = (*f_out)[l].voxels ? static_cast<double>(inside[l]) / static_cast<double>((*f_out)[l].voxels) : 0.0;
+    }
     LabelImage::Pointer out = relabel->GetOutput();
     out->DisconnectPipeline();
     return out;
@@ -465,7 +558,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     const auto* b = bone->GetBufferPointer();
     const double dense_hu = offset + opt.dense_threshold_hu;
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) dn[i] = b[i] && hu_crop[i] >= dense_hu;
-    const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false);  // a thin shell must not leak diagonally
+    const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false, opens_per(ctx.whole_filled));  // a thin shell must not leak diagonally
     // Fill only thick cavities (cancellous cores). A thin enclosed cavity is a
     // joint space or an occlusal gap wrapped by bone: filling it would weld
     // the condyle to its fossa, the lower teeth to the upper.
@@ -548,7 +641,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
       Trial t;
       t.rr = rr;
       t.m = cores_of(sd, rr, &t.n, &t.f);
-      t.l = pick_mandible(t.f, voxel_mm3, rr);
+      t.l = pick_mandible(t.f, voxel_mm3, rr, min_located);
       if (t.l) t.height = t.f[t.l].extent(2) + 2 * rr;
       if (lap.on && t.l)
         std::fprintf(stderr, "  %s r %.1f: mandible core %.1f cm3 w %.0f d %.0f h %.0f (%u cores)\n", name, rr,
@@ -562,7 +655,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
       Trial t;
       t.rr = tallest_any.rr;
       t.m = cores_of(sd, t.rr, &t.n, &t.f);
-      t.l = pick_mandible(t.f, voxel_mm3, t.rr);
+      t.l = pick_mandible(t.f, voxel_mm3, t.rr, min_located);
       t.height = tallest_any.height;
       if (t.l) adopt(t);
     }
@@ -604,6 +697,8 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     {
       // Flood deep and bright first: boundaries settle on geometric necks
       // (cusp contacts) and in intensity valleys (occlusal gap, joint space).
+      // Levels lie in [-2, 0]: depth (capped at 4 mm) and HU above soft
+      // tissue (capped at 2600 HU) each contribute down to -1.
       if (bone_depth.empty()) bone_depth = depth_of(bone.GetPointer());
       const auto* b = bone->GetBufferPointer();
       const float hu0 = static_cast<float>(offset);
@@ -621,10 +716,10 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
       const auto* b = bone->GetBufferPointer();
       const auto* ds = dense_solid->GetBufferPointer();
       for (std::size_t i = 0; i < dense_bone.size(); ++i) dense_bone[i] = b[i] && ds[i];
-      const std::vector<unsigned> first = watershed_from_markers(landscape, dense_bone.data(), markers->GetBufferPointer(), cg);
-      wsl = watershed_from_markers(landscape, b, first.data(), cg);
+      const std::vector<unsigned> first = watershed_from_markers(landscape, dense_bone.data(), markers->GetBufferPointer(), cg, -2.0f, 0.0f);
+      wsl = watershed_from_markers(landscape, b, first.data(), cg, -2.0f, 0.0f);
     } else {
-      wsl = watershed_from_markers(landscape, bone->GetBufferPointer(), markers->GetBufferPointer(), cg);
+      wsl = watershed_from_markers(landscape, bone->GetBufferPointer(), markers->GetBufferPointer(), cg, -2.0f, 0.0f);
     }
     lap("watershed");
     const unsigned* w = wsl.data();
@@ -639,7 +734,7 @@ static Separated separate(const Volume& ct, const Options& opt, double native_ma
     // teeth (OpenKBP pt_246: Dice 0.79 -> 0.77 with them joined).
     const bool fine_scan = native_max_spacing <= opt.max_working_spacing_mm;
     const std::vector<bool> joined =
-        fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3))
+        fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3), crop_cut)
                   : [&] { std::vector<bool> j(n_markers + 1, false); j[mand] = true; return j; }();
     auto in_mandible = [&](LabelImage::PixelType l) { return l != 0 && joined[l]; };
     lap("fragments");
@@ -792,28 +887,15 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   return r;
 }
 
-// Steps 1-7 on the grid of ct (binned for separation when finer than
-// opt.separation_spacing_mm).
-static Result segment_on_grid(const Volume& ct, const Options& opt, double native_max_spacing) {
+// Mean of each f[0] x f[1] x f[2] block of ct (trailing partial blocks
+// dropped), on a grid whose voxel I is centred on its block.
+static Volume bin_average(const Volume& ct, const std::array<unsigned, 3>& f) {
   const Geometry& g = ct.geom;
-  // Inputs finer than ~0.8 mm: separate on a bin-averaged grid, place the
-  // surface at full resolution (docs/segmentation.md, "Multi-resolution").
-  std::array<unsigned, 3> f{1, 1, 1};
-  for (int a = 0; a < 3; ++a)
-    f[a] = std::max(1u, static_cast<unsigned>(std::floor(opt.separation_spacing_mm / g.spacing[a] + 1e-6)));
-  if (f[0] * f[1] * f[2] == 1) {
-    Separated sp = separate(ct, opt, native_max_spacing);
-    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info, native_max_spacing);
-  }
   Volume coarse;
   coarse.geom = g;
   for (int a = 0; a < 3; ++a) {
     coarse.geom.size[a] = g.size[a] / f[a];
     coarse.geom.spacing[a] = g.spacing[a] * f[a];
-  }
-  if (coarse.geom.size[0] < 8 || coarse.geom.size[1] < 8 || coarse.geom.size[2] < 8) {
-    Separated sp = separate(ct, opt, native_max_spacing);
-    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info, native_max_spacing);
   }
   // Bin centre of coarse voxel 0 sits at full index (f - 1) / 2.
   coarse.geom.origin = g.index_to_lps(0.5 * (f[0] - 1), 0.5 * (f[1] - 1), 0.5 * (f[2] - 1));
@@ -830,7 +912,29 @@ static Result segment_on_grid(const Volume& ct, const Options& opt, double nativ
             for (unsigned di = 0; di < f[0]; ++di) acc += ct.hu[g.linear(I * f[0] + di, J * f[1] + dj, K * f[2] + dk)];
         coarse.hu[coarse.geom.linear(I, J, static_cast<std::size_t>(K))] = static_cast<float>(acc * inv);
       }
-  Separated sp = separate(coarse, opt, native_max_spacing);
+  return coarse;
+}
+
+// Steps 1-7 on the grid of ct (binned for separation when finer than
+// opt.separation_spacing_mm).
+static Result segment_on_grid(const Volume& ct, const Options& opt, const GridContext& ctx) {
+  const double native_max_spacing = ctx.native_max_spacing;
+  const Geometry& g = ct.geom;
+  // Inputs finer than ~0.8 mm: separate on a bin-averaged grid, place the
+  // surface at full resolution (docs/segmentation.md, "Multi-resolution").
+  std::array<unsigned, 3> f{1, 1, 1};
+  for (int a = 0; a < 3; ++a)
+    f[a] = std::max(1u, static_cast<unsigned>(std::floor(opt.separation_spacing_mm / g.spacing[a] + 1e-6)));
+  if (f[0] * f[1] * f[2] == 1) {
+    Separated sp = separate(ct, opt, ctx);
+    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info, native_max_spacing);
+  }
+  const Volume coarse = bin_average(ct, f);
+  if (coarse.geom.size[0] < 8 || coarse.geom.size[1] < 8 || coarse.geom.size[2] < 8) {
+    Separated sp = separate(ct, opt, ctx);
+    return finalize(ct, opt, sp.region, std::move(sp.mand), sp.info, native_max_spacing);
+  }
+  Separated sp = separate(coarse, opt, ctx);
   // Full-resolution region: the coarse mandible region, grown by one coarse
   // voxel into anything not given to another bone.
   const auto ci = sp.region.GetIndex();
@@ -871,6 +975,128 @@ static Result segment_on_grid(const Volume& ct, const Options& opt, double nativ
         mask[fg.linear(i, j, static_cast<std::size_t>(k))] = keep;
       }
   return finalize(ct, opt, region, std::move(mask), sp.info, native_max_spacing);
+}
+
+// Fine scans (docs/segmentation.md, "Locating the mandible first"): steps 1-5
+// on a bin-averaged grid of about opt.locate_spacing_mm find the mandible's
+// region; steps 1-7 then run at full resolution on the scan cropped to that
+// region's bounding box grown by opt.locate_margin_mm, with the calibration
+// offset of the whole scan. The crop must not change the answer: when the
+// located run does not separate, or its mask reaches a cut face of the crop
+// or lies outside the located region, the whole scan is segmented instead.
+static Result segment_located(const Volume& ct, const Options& opt, double native) {
+  const Geometry& g = ct.geom;
+  const GridContext whole{native};
+  DebugLap lap;
+  std::array<unsigned, 3> f{1, 1, 1};
+  for (int a = 0; a < 3; ++a)
+    f[a] = opt.locate_spacing_mm > 0 ? std::max(1u, static_cast<unsigned>(std::floor(opt.locate_spacing_mm / g.spacing[a] + 1e-6))) : 1u;
+  if (f[0] * f[1] * f[2] < 4) return segment_on_grid(ct, opt, whole);
+  const Volume coarse = bin_average(ct, f);
+  if (coarse.geom.size[0] < 16 || coarse.geom.size[1] < 16 || coarse.geom.size[2] < 16) return segment_on_grid(ct, opt, whole);
+  auto fall_back = [&](const char* why) {
+    if (lap.on) std::fprintf(stderr, "  locate: %s; segmenting the whole scan\n", why);
+    return segment_on_grid(ct, opt, whole);
+  };
+  Separated located;
+  try {
+    GridContext on_coarse{native};
+    on_coarse.keep_fill = true;
+    located = separate(coarse, opt, on_coarse);
+  } catch (const Error&) {
+    return fall_back("nothing located on the coarse grid");
+  }
+  if (!located.separated) return fall_back("not separated on the coarse grid");
+  const Box b = bounding_box(located.mand.data(), located.cg.size, 0);
+  if (b.size[0] == 0) return fall_back("empty region on the coarse grid");
+  lap("locate (coarse grid)");
+  // Crop: the located region's blocks, grown by the margin.
+  std::array<std::size_t, 3> lo{}, size{};
+  std::array<bool, 6> cut{};
+  for (int a = 0; a < 3; ++a) {
+    const long m = static_cast<long>(std::ceil(opt.locate_margin_mm / g.spacing[a]));
+    const long first = static_cast<long>(located.region.GetIndex()[a] + b.lo[a]) * f[a];
+    const long last = static_cast<long>(located.region.GetIndex()[a] + b.lo[a] + b.size[a]) * f[a] - 1;
+    const long l = std::max(0L, first - m), h = std::min(static_cast<long>(g.size[a]) - 1, last + m);
+    lo[a] = static_cast<std::size_t>(l);
+    size[a] = static_cast<std::size_t>(h - l + 1);
+    cut[2 * a] = l > 0;
+    cut[2 * a + 1] = h + 1 < static_cast<long>(g.size[a]);
+  }
+  Volume sub;
+  sub.geom = g;
+  sub.geom.size = size;
+  sub.geom.origin = g.index_to_lps(static_cast<double>(lo[0]), static_cast<double>(lo[1]), static_cast<double>(lo[2]));
+  sub.hu.resize(sub.geom.voxel_count());
+  for (std::size_t k = 0; k < size[2]; ++k)
+    for (std::size_t j = 0; j < size[1]; ++j)
+      std::copy_n(ct.hu.data() + g.linear(lo[0], j + lo[1], k + lo[2]), size[0], sub.hu.data() + sub.geom.linear(0, j, k));
+  // The located region grown by one coarse voxel (26-neighbourhood), in LPS.
+  Mask region;
+  region.geom = located.cg;
+  region.data.assign(located.mand.size(), 0);
+  {
+    const Dims3& d = located.cg.size;
+    for (std::size_t k = 0; k < d[2]; ++k)
+      for (std::size_t j = 0; j < d[1]; ++j)
+        for (std::size_t i = 0; i < d[0]; ++i) {
+          if (!located.mand[located.cg.linear(i, j, k)]) continue;
+          for (std::size_t z = k ? k - 1 : 0; z <= std::min(k + 1, d[2] - 1); ++z)
+            for (std::size_t y = j ? j - 1 : 0; y <= std::min(j + 1, d[1] - 1); ++y)
+              for (std::size_t x = i ? i - 1 : 0; x <= std::min(i + 1, d[0] - 1); ++x) region.data[located.cg.linear(x, y, z)] = 1;
+        }
+  }
+  GridContext in_crop{native, located.info.offset_hu, cut};
+  in_crop.located = &region;
+  in_crop.whole_filled = &located.bone_filled;
+  Result r;
+  try {
+    r = segment_on_grid(sub, opt, in_crop);
+  } catch (const Error&) {
+    return fall_back("nothing found in the crop");
+  }
+  if (r.separation_radius_mm <= 0) return fall_back("not separated in the crop");
+  // The mask on a cut face: the mandible (or what was taken for it) goes on
+  // outside the crop. Mask voxels outside the located region, grown by one
+  // coarse voxel: the crop found another bone, or more than the mandible.
+  const Geometry& sg = sub.geom;
+  auto in_located = [&](std::size_t i, std::size_t j, std::size_t k) {
+    const Vec3 q = region.geom.lps_to_index(sg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+    const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
+    return x >= 0 && y >= 0 && z >= 0 && x < long(region.geom.size[0]) && y < long(region.geom.size[1]) && z < long(region.geom.size[2]) &&
+           region.data[region.geom.linear(x, y, z)] != 0;
+  };
+  std::size_t on_cut = 0, outside = 0, total = 0;
+  for (std::size_t k = 0; k < sg.size[2]; ++k)
+    for (std::size_t j = 0; j < sg.size[1]; ++j)
+      for (std::size_t i = 0; i < sg.size[0]; ++i) {
+        if (!r.mask.data[sg.linear(i, j, k)]) continue;
+        ++total;
+        on_cut += (cut[0] && i == 0) || (cut[1] && i + 1 == sg.size[0]) || (cut[2] && j == 0) || (cut[3] && j + 1 == sg.size[1]) ||
+                  (cut[4] && k == 0) || (cut[5] && k + 1 == sg.size[2]);
+        outside += !in_located(i, j, k);
+      }
+  if (lap.on)
+    std::fprintf(stderr, "  crop %zu x %zu x %zu of %zu x %zu x %zu: mask %zu voxels, %zu on cut faces, %.4f outside the located region\n",
+                 size[0], size[1], size[2], g.size[0], g.size[1], g.size[2], total, on_cut,
+                 total ? static_cast<double>(outside) / static_cast<double>(total) : 0.0);
+  if (on_cut > 0) return fall_back("the mask reaches a cut face of the crop");
+  if (static_cast<double>(outside) > opt.locate_outside_fraction * static_cast<double>(total))
+    return fall_back("the mask lies outside the located region");
+  // Back onto the scan's grid; truncation is the scan's edge, not the crop's.
+  Mask full;
+  full.geom = g;
+  full.data.assign(g.voxel_count(), 0);
+  for (std::size_t k = 0; k < size[2]; ++k)
+    for (std::size_t j = 0; j < size[1]; ++j)
+      std::copy_n(r.mask.data.data() + sg.linear(0, j, k), size[0], full.data.data() + g.linear(lo[0], j + lo[1], k + lo[2]));
+  r.mask = std::move(full);
+  r.warnings.erase(std::remove_if(r.warnings.begin(), r.warnings.end(),
+                                  [](const std::string& w) { return w.rfind("the mandible touches the edge", 0) == 0; }),
+                   r.warnings.end());
+  set_truncation(r);
+  r.cropped = true;
+  return r;
 }
 
 // Trilinear interpolation of ct onto a grid with the same origin, direction
@@ -954,7 +1180,7 @@ static Mask coarsen(const Mask& fine, const Geometry& g) {
 Result segment_mandible(const Volume& ct, const Options& opt) {
   const Geometry& g = ct.geom;
   const double native = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-  if (native <= opt.max_working_spacing_mm + 1e-6) return segment_on_grid(ct, opt, native);
+  if (native <= opt.max_working_spacing_mm + 1e-6) return segment_located(ct, opt, native);
   // Coarse scans (docs/segmentation.md, "Coarse scans"): the cores and necks
   // the separation relies on are a few mm across, so axes coarser than
   // max_working_spacing_mm are interpolated, segmented there, and the mask
@@ -969,7 +1195,7 @@ Result segment_mandible(const Volume& ct, const Options& opt) {
     const Volume fine = interpolate_finer(ct, factor * opt.max_working_spacing_mm);
     Result r;
     try {
-      r = segment_on_grid(fine, opt, native);
+      r = segment_on_grid(fine, opt, GridContext{native});
     } catch (const Error&) {
       if (factor == 1.0) throw;
       continue;

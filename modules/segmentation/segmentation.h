@@ -25,6 +25,15 @@ struct Options {
   // Inputs finer than this (mm) are separated on a bin-averaged grid of about
   // this spacing; the surface is still placed at full resolution.
   double separation_spacing_mm = 0.6;
+  // Inputs with at least 4 voxels per block of about this spacing (mm) are
+  // first segmented on a bin-averaged grid of it to locate the mandible; the
+  // full-resolution work then runs on the scan cropped to the located
+  // mandible's box grown by locate_margin_mm (0 = never; docs/segmentation.md).
+  double locate_spacing_mm = 1.0;
+  double locate_margin_mm = 10.0;
+  // The crop's mask may lie outside the located region (grown by one coarse
+  // voxel) by at most this fraction; more, and the whole scan is segmented.
+  double locate_outside_fraction = 0.1;
   // Axes coarser than this (mm) are interpolated (trilinear) to it for the
   // whole segmentation; the mask is brought back to the input grid.
   double max_working_spacing_mm = 2.0;
@@ -44,6 +53,7 @@ struct Result {
   std::size_t voxels = 0;
   double volume_mm3 = 0;
   bool truncated = false;  // the mask touches the edge of the scan
+  bool cropped = false;    // full-resolution work ran on a crop around the located mandible
   double threshold_hu = 0;          // bone threshold used (after calibration offset)
   double offset_hu = 0;             // estimated calibration offset (soft-tissue peak - 40 HU)
   double separation_radius_mm = 0;  // core depth used to separate the mandible (0: failed)
