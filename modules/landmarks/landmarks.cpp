@@ -266,16 +266,33 @@ Result detect(const Mesh& mesh, const Options& opt) {
         gs.idx.push_back(v);
       }
     const std::vector<P2> hl = hull(gs.pts);
-    double best_post = 0, best_inf = 0;
+    // Hull edges facing posterior / inferior (within 50 degrees); the two
+    // tangents are the pair of distinct edges, one of each, with the largest
+    // total length. (Taking the longest of each separately let one edge at
+    // ~45 degrees be both when the head was pitched 20 degrees: a concave
+    // posterior border's single long edge faces 24 degrees below posterior.)
+    struct Edge {
+      double len;
+      P2 out;
+    };
+    std::vector<Edge> post, inf;
+    const double cone = std::cos(50 * M_PI / 180);
     for (std::size_t i = 0; i < hl.size(); ++i) {
       const P2 &p = hl[i], &q = hl[(i + 1) % hl.size()];
       const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
       if (len < 1e-9) continue;
       const P2 out{dh / len, -da / len};  // outward normal of a counter-clockwise hull
-      // The longest edge facing posterior / inferior (within 50 degrees).
-      if (out.a > std::cos(50 * M_PI / 180) && len > best_post) best_post = len, gs.n_post = out;
-      if (-out.h > std::cos(50 * M_PI / 180) && len > best_inf) best_inf = len, gs.n_inf = out;
+      if (out.a > cone) post.push_back({len, out});
+      if (-out.h > cone) inf.push_back({len, out});
     }
+    double best_post = 0, best_inf = 0;
+    for (const Edge& p : post)
+      for (const Edge& q : inf) {
+        // Distinct edges, the posterior one above (less inferior than) the inferior one.
+        if (-p.out.h >= -q.out.h || p.len + q.len <= best_post + best_inf) continue;
+        best_post = p.len, gs.n_post = p.out;
+        best_inf = q.len, gs.n_inf = q.out;
+      }
     gs.ok = best_post > 15 && best_inf > 15;
   }
 

@@ -476,33 +476,97 @@ LandmarkSet Anatomy::landmarks() const {
     };
     out.set("Co" + suf, highest(m.head_center, 9.0, 7.0));
     out.set("Cr" + suf, highest(m.to_h(m.coronoid_fu.x, m.coronoid_fu.y - 4.0, 0.0), 5.0, 7.0));
-    // Go: bisector of the angle between the posterior ramus tangent and the
-    // inferior border tangent, intersected with the surface (in the ramus plane).
-    const sdf::P2 a0 = m.post_low_fu, a1 = m.post_top_fu;
-    // inferior border: two points of the body's lower edge, in (f, u)
-    auto border_fu = [&](double t) {
+    // Go (METHOD.md §2, as docs/landmarks.md measures it): in the sagittal
+    // projection (y, z) of this side, the posterior ramus tangent and the
+    // inferior border tangent are supporting lines of the outline (hull
+    // edges within 50 degrees of posterior / inferior: the distinct pair with
+    // the largest total length); gonion is where the bisector of their
+    // outward normals meets the surface: the bone's extreme point along it.
+    // The tangents come from the design outline (the ramus plate's polygon
+    // and the body's lower border, in 3D); the extreme point from the bone
+    // itself, around the outline's extreme point. Until 2026-12-02 the
+    // tangents were drawn in the ramus plane through the outline's corner
+    // and two border points, and gonion was that corner crossed along the
+    // bisector: 2.8 mm from where the definition puts it on the rounded angle.
+    std::vector<Vec3> outline;
+    for (const auto& q : m.polygon) outline.push_back(m.to_h(q.x, q.y, 0.0));
+    {
       const auto& arc = arch_[si];
       const auto& tt = arch_t_[si];
-      std::size_t i = 1;
-      while (i + 1 < arc.size() && tt[i] < t) ++i;
-      const double w = (t - tt[i - 1]) / (tt[i] - tt[i - 1]);
-      const Vec3 q{lerp(arc[i - 1].x, arc[i].x, w), lerp(arc[i - 1].y, arc[i].y, w), z_lower(t)};
-      const Vec3 l = m.local(q);
-      return sdf::P2{l[0], l[1]};
+      for (std::size_t i = 0; i < arc.size(); ++i)
+        if (tt[i] >= 0.35) outline.push_back({arc[i].x, arc[i].y, z_lower(tt[i])});
+    }
+    // Convex hull of the projection (monotone chain), counter-clockwise in (y, z).
+    std::vector<std::size_t> order(outline.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return outline[a][1] < outline[b][1] || (outline[a][1] == outline[b][1] && outline[a][2] < outline[b][2]);
+    });
+    auto turn = [&](std::size_t o, std::size_t a, std::size_t b) {
+      return (outline[a][1] - outline[o][1]) * (outline[b][2] - outline[o][2]) - (outline[a][2] - outline[o][2]) * (outline[b][1] - outline[o][1]);
     };
-    const sdf::P2 b0 = border_fu(0.9), b1 = border_fu(0.6);
-    // line intersection a0 + s (a1 - a0) = b0 + r (b1 - b0)
-    const double ax = a1.x - a0.x, ay = a1.y - a0.y, bx = b1.x - b0.x, by = b1.y - b0.y;
-    const double den = ax * by - ay * bx;
-    const double sp = ((b0.x - a0.x) * by - (b0.y - a0.y) * bx) / den;
-    const sdf::P2 I{a0.x + sp * ax, a0.y + sp * ay};
-    const double la = std::hypot(ax, ay), lb = std::hypot(bx, by);
-    sdf::P2 bis{ax / la + bx / lb, ay / la + by / lb};
-    const double lbis = std::hypot(bis.x, bis.y);
-    bis = {bis.x / lbis, bis.y / lbis};
-    const Vec3 outside = m.to_h(I.x - 8 * bis.x, I.y - 8 * bis.y, 0);
-    const Vec3 inside = m.to_h(I.x + 25 * bis.x, I.y + 25 * bis.y, 0);
-    out.set("Go" + suf, crossing(f, outside, inside));
+    std::vector<std::size_t> h(2 * order.size());
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      while (k >= 2 && turn(h[k - 2], h[k - 1], order[i]) <= 0) --k;
+      h[k++] = order[i];
+    }
+    for (std::size_t i = order.size() - 1, t = k + 1; i-- > 0;) {
+      while (k >= t && turn(h[k - 2], h[k - 1], order[i]) <= 0) --k;
+      h[k++] = order[i];
+    }
+    h.resize(k - 1);  // counter-clockwise in (y, z)
+    struct Edge {
+      double len, ny, nz;
+    };
+    std::vector<Edge> post, inf;
+    const double cone = std::cos(50.0 * kPi / 180.0);
+    for (std::size_t i = 0; i < h.size(); ++i) {
+      const Vec3 &a = outline[h[i]], &b = outline[h[(i + 1) % h.size()]];
+      const double dy = b[1] - a[1], dz = b[2] - a[2], len = std::hypot(dy, dz);
+      if (len < 1e-9) continue;
+      const Edge e{len, dz / len, -dy / len};  // outward normal of a counter-clockwise hull
+      if (e.ny > cone) post.push_back(e);  // +y: posterior
+      if (-e.nz > cone) inf.push_back(e);
+    }
+    double best_len = -1, ny = 0, nz = -1;
+    for (const Edge& pe : post)
+      for (const Edge& ie : inf)
+        if (-pe.nz < -ie.nz && pe.len + ie.len > best_len) {
+          best_len = pe.len + ie.len;
+          const double by = pe.ny + ie.ny, bz = pe.nz + ie.nz, bl = std::hypot(by, bz);
+          ny = by / bl, nz = bz / bl;
+        }
+    std::size_t go = h.front();
+    for (std::size_t i : h)
+      if (outline[i][1] * ny + outline[i][2] * nz > outline[go][1] * ny + outline[go][2] * nz) go = i;
+    // The bone's extreme point along the bisector near that outline corner
+    // (the surface is rounded there, not a uniform offset of the outline):
+    // sampled at 0.25 mm in (y, z) over a 24 mm window, 0.5 mm across.
+    const Vec3 c = outline[go];
+    Vec3 best = c;
+    double best_score = -kFar;
+    for (double y = c[1] - 12.0; y <= c[1] + 12.0; y += 0.25)
+      for (double z = c[2] - 12.0; z <= c[2] + 12.0; z += 0.25) {
+        const double score = y * ny + z * nz;
+        if (score <= best_score) continue;
+        for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.5)
+          if (f(Vec3{x, y, z}) < 0) {
+            best = {x, y, z};
+            best_score = score;
+            break;
+          }
+      }
+    // Across the plate: the middle of the bone at that (y, z), so that left
+    // and right are mirror images whatever the sampling's direction.
+    {
+      double x0 = kFar, x1 = -kFar;
+      for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.1)
+        if (f(Vec3{x, best[1], best[2]}) < 0) x0 = std::min(x0, x), x1 = std::max(x1, x);
+      best[0] = 0.5 * (x0 + x1);
+    }
+    const Vec3 n3{0.0, ny, nz};
+    out.set("Go" + suf, crossing(f, best + 2.0 * n3, best - 2.0 * n3));
   }
   // Me: lowest point of the symphysis (on its mid-sagittal line).
   {

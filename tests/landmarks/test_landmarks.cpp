@@ -73,7 +73,7 @@ TEST_P(LandmarkMatrix, LabelsEveryLandmarkOnTheRightSideNearTheTruth) {
     // is not (docs/landmarks.md): there only the identity of the point is
     // checked (a wrong process or side is 25 mm or more away).
     const bool pitched = std::abs(c.pitch) > 5;
-    const double tol = pitched ? 12.0 : name.rfind("Go", 0) == 0 ? 4.0 : 2.0;
+    const double tol = pitched ? 12.0 : 2.0;
     EXPECT_LT(e, tol) << name;
   }
   std::printf("%s:%s\n", c.name, line.c_str());
