@@ -130,7 +130,6 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
                                  {-2, 48},  {-4, 52},  {-13, 52}, {-15, 46}, {-9, 22}};
     sdf::P2 head{-8.5, 55.0};
     sdf::P2 cor{24, 51};  // coronoid tip ~3 mm below the condylion after the tilt
-    sdf::P2 post_top{-15, 46}, post_low{0, 0};
     // Ramus height: stretch the ramus plate above the angle vertically; the head moves up with its top.
     const double h0 = 60.0;  // condylion height above the corner, unmodified
     const double scale = (h0 + a.ramus_height_mm) / h0;
@@ -149,8 +148,6 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
     // the condylion rises by exactly the knob along the ramus axis.
     m.head_fu = xf({head.x, (head.y + a.ramus_height_mm) / scale});
     m.coronoid_fu = xf(cor);
-    m.post_top_fu = xf(post_top);
-    m.post_low_fu = xf(post_low);
     m.ramus_top = 60.0 * scale;
     m.head_center = m.to_h(m.head_fu.x, m.head_fu.y, -1.5);
     const double dc = a.condyle_size_mm / 2.0;

@@ -33,7 +33,6 @@ struct SideModel {
   Vec3 head_center;            // in H
   Vec3 head_axes;              // half-axes: medio-lateral, antero-posterior, supero-inferior
   sdf::P2 coronoid_fu;         // coronoid tip vertex (f, u)
-  sdf::P2 post_top_fu, post_low_fu;  // posterior border line
   // (f, u, n) of a point in H: f anterior, u superior, n lateral offset from the ramus mid-surface.
   Vec3 local(const Vec3& p) const;
   Vec3 to_h(double f, double u, double n) const;
