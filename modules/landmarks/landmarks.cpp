@@ -6,6 +6,7 @@
 #include <queue>
 #include <array>
 
+#include "core/hull2d.h"
 #include "geometry/mesh_geometry.h"
 #include "reference/reference.h"
 
@@ -85,23 +86,13 @@ struct P2 {
   double a, h;  // antero-posterior (+posterior), supero-inferior (+superior)
 };
 
-// Convex hull (counter-clockwise in (a, h)), Andrew's monotone chain.
-std::vector<P2> hull(std::vector<P2> p) {
-  std::sort(p.begin(), p.end(), [](const P2& x, const P2& y) { return x.a < y.a || (x.a == y.a && x.h < y.h); });
-  if (p.size() < 3) return p;
-  auto cross2 = [](const P2& o, const P2& x, const P2& y) { return (x.a - o.a) * (y.h - o.h) - (x.h - o.h) * (y.a - o.a); };
-  std::vector<P2> H(2 * p.size());
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    while (k >= 2 && cross2(H[k - 2], H[k - 1], p[i]) <= 0) --k;
-    H[k++] = p[i];
-  }
-  for (std::size_t i = p.size() - 1, t = k + 1; i > 0; --i) {
-    while (k >= t && cross2(H[k - 2], H[k - 1], p[i - 1]) <= 0) --k;
-    H[k++] = p[i - 1];
-  }
-  H.resize(k - 1);
-  return H;
+// Convex hull, counter-clockwise in (a, h).
+std::vector<P2> hull(const std::vector<P2>& p) {
+  std::vector<std::array<double, 2>> xy(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) xy[i] = {p[i].a, p[i].h};
+  std::vector<P2> out;
+  for (std::size_t i : convex_hull_2d(xy)) out.push_back(p[i]);
+  return out;
 }
 
 // Among candidate vertices, those within tol of the best score (a flat top

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "core/hull2d.h"
+
 namespace ms::phantom {
 namespace {
 
@@ -493,26 +495,9 @@ LandmarkSet Anatomy::landmarks() const {
       for (std::size_t i = 0; i < arc.size(); ++i)
         if (tt[i] >= 0.35) outline.push_back({arc[i].x, arc[i].y, z_lower(tt[i])});
     }
-    // Convex hull of the projection (monotone chain), counter-clockwise in (y, z).
-    std::vector<std::size_t> order(outline.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return outline[a][1] < outline[b][1] || (outline[a][1] == outline[b][1] && outline[a][2] < outline[b][2]);
-    });
-    auto turn = [&](std::size_t o, std::size_t a, std::size_t b) {
-      return (outline[a][1] - outline[o][1]) * (outline[b][2] - outline[o][2]) - (outline[a][2] - outline[o][2]) * (outline[b][1] - outline[o][1]);
-    };
-    std::vector<std::size_t> h(2 * order.size());
-    std::size_t k = 0;
-    for (std::size_t i = 0; i < order.size(); ++i) {
-      while (k >= 2 && turn(h[k - 2], h[k - 1], order[i]) <= 0) --k;
-      h[k++] = order[i];
-    }
-    for (std::size_t i = order.size() - 1, t = k + 1; i-- > 0;) {
-      while (k >= t && turn(h[k - 2], h[k - 1], order[i]) <= 0) --k;
-      h[k++] = order[i];
-    }
-    h.resize(k - 1);  // counter-clockwise in (y, z)
+    std::vector<std::array<double, 2>> yz(outline.size());
+    for (std::size_t i = 0; i < outline.size(); ++i) yz[i] = {outline[i][1], outline[i][2]};
+    const std::vector<std::size_t> h = convex_hull_2d(yz);  // counter-clockwise in (y, z)
     struct Edge {
       double len, ny, nz;
     };

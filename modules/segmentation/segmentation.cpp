@@ -13,7 +13,6 @@
 #include <limits>
 #include <cstdio>
 #include <cstdlib>
-#include <functional>
 #include <set>
 
 #include "core/distance_transform.h"
@@ -188,10 +187,7 @@ typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionTy
 // (face-connected, or face+edge+vertex when fully_connected) that do not
 // reach a face of the grid. What ITK's BinaryFillholeImageFilter does, without
 // the shape label map it builds on the way (perimeters of every component).
-// opens(i, j, k), when given, says whether a voxel on a face of the grid lets
-// its component out (a crop's face inside a cavity of the whole scan does not).
-MaskImage::Pointer filled(const MaskImage* in, bool fully_connected,
-                          const std::function<bool(std::size_t, std::size_t, std::size_t)>& opens = {}) {
+MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
   const auto size = in->GetLargestPossibleRegion().GetSize();
   const Dims3 d{size[0], size[1], size[2]};
   const std::size_t n = d[0] * d[1] * d[2];
@@ -212,8 +208,10 @@ MaskImage::Pointer filled(const MaskImage* in, bool fully_connected,
     for (std::size_t j = 0; j < d[1]; ++j) {
       const bool face = k == 0 || j == 0 || k + 1 == d[2] || j + 1 == d[1];
       const std::size_t row = d[0] * (j + d[1] * k);
-      for (std::size_t i = 0; i < d[0]; i += face ? 1 : std::max<std::size_t>(1, d[0] - 1))
-        if (!opens || opens(i, j, k)) open[lab[row + i]] = 1;
+      if (face)
+        for (std::size_t i = 0; i < d[0]; ++i) open[lab[row + i]] = 1;
+      else
+        open[lab[row]] = open[lab[row + d[0] - 1]] = 1;
     }
   auto out = MaskImage::New();
   out->CopyInformation(in);
@@ -341,14 +339,15 @@ struct GridContext {
   // The mandible's region as located on a coarser grid (LPS geometry), or
   // null: on a crop, only cores inside it can be the mandible.
   const Mask* located = nullptr;
-  // The whole scan's filled bone mask on that coarser grid: background on a
-  // cut face lets a cavity out (of the bone and of the dense-bone solid) only
-  // where the whole scan's does (a cancellous core, a sinus or the cranial
-  // cavity cut by the crop stays enclosed). Not the coarse dense-bone mask:
-  // bin-averaging thins a cortex below the dense threshold, so it leaks.
-  const Mask* whole_filled = nullptr;
-  bool keep_fill = false;  // record this grid's filled bone mask in Separated
 };
+
+// Whether the voxel of mask m nearest to LPS point p is set (false outside m's grid).
+static bool set_near(const Mask& m, const Vec3& p) {
+  const Vec3 q = m.geom.lps_to_index(p);
+  const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
+  return x >= 0 && y >= 0 && z >= 0 && x < long(m.geom.size[0]) && y < long(m.geom.size[1]) && z < long(m.geom.size[2]) &&
+         m.data[m.geom.linear(static_cast<std::size_t>(x), static_cast<std::size_t>(y), static_cast<std::size_t>(z))] != 0;
+}
 
 // Steps 1-5 of docs/segmentation.md on one grid: the mandible's region and the
 // other bones' regions (watershed), on the bone bounding box.
@@ -358,7 +357,6 @@ struct Separated {
   std::vector<std::uint8_t> mand;    // mandible region (bone, before surface placement)
   std::vector<std::uint8_t> other;   // bone given to other markers
   bool separated = false;
-  Mask bone_filled;                  // on cg, when GridContext::keep_fill
   Result info;                       // method, offsets, warnings, radius, marker source
 };
 
@@ -470,26 +468,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     crop_cut[2 * a] = ctx.cut[2 * a] && region.GetIndex()[a] == 0;
     crop_cut[2 * a + 1] = ctx.cut[2 * a + 1] && region.GetIndex()[a] + static_cast<long>(region.GetSize()[a]) == long(g.size[a]);
   }
-  // Which face voxels let a cavity out: all, but on a cut face only those
-  // outside the whole scan's filled mask.
-  auto opens_per = [&](const Mask* whole) -> std::function<bool(std::size_t, std::size_t, std::size_t)> {
-    if (!whole) return {};
-    return [&cg, &crop_cut, whole](std::size_t i, std::size_t j, std::size_t k) {
-      const bool on_cut = (crop_cut[0] && i == 0) || (crop_cut[1] && i + 1 == cg.size[0]) || (crop_cut[2] && j == 0) ||
-                          (crop_cut[3] && j + 1 == cg.size[1]) || (crop_cut[4] && k == 0) || (crop_cut[5] && k + 1 == cg.size[2]);
-      if (!on_cut) return true;
-      const Vec3 q = whole->geom.lps_to_index(cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
-      const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
-      if (x < 0 || y < 0 || z < 0 || x >= long(whole->geom.size[0]) || y >= long(whole->geom.size[1]) || z >= long(whole->geom.size[2]))
-        return true;
-      return whole->data[whole->geom.linear(x, y, z)] == 0;
-    };
-  };
-  bone = filled(bone.GetPointer(), true, opens_per(ctx.whole_filled));
-  if (ctx.keep_fill) {
-    out.bone_filled.geom = cg;
-    out.bone_filled.data.assign(bone->GetBufferPointer(), bone->GetBufferPointer() + cg.voxel_count());
-  }
+  bone = filled(bone.GetPointer(), true);
   lap("bone mask, crop, fill");
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
@@ -509,18 +488,14 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   std::vector<std::uint8_t> in_located;
   const double min_located = ctx.located ? 1.0 - opt.locate_outside_fraction : 0.0;
   if (ctx.located) {
-    const Mask& L = *ctx.located;
     in_located.assign(cg.voxel_count(), 0);
     const long nz = static_cast<long>(cdims[2]);
 #pragma omp parallel for schedule(static)
     for (long k = 0; k < nz; ++k)
       for (std::size_t j = 0; j < cdims[1]; ++j)
-        for (std::size_t i = 0; i < cdims[0]; ++i) {
-          const Vec3 q = L.geom.lps_to_index(cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
-          const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
-          if (x >= 0 && y >= 0 && z >= 0 && x < long(L.geom.size[0]) && y < long(L.geom.size[1]) && z < long(L.geom.size[2]))
-            in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = L.data[L.geom.linear(x, y, z)];
-        }
+        for (std::size_t i = 0; i < cdims[0]; ++i)
+          in_located[cg.linear(i, j, static_cast<std::size_t>(k))] =
+              set_near(*ctx.located, cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
   }
   auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
   auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
@@ -558,7 +533,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     const auto* b = bone->GetBufferPointer();
     const double dense_hu = offset + opt.dense_threshold_hu;
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) dn[i] = b[i] && hu_crop[i] >= dense_hu;
-    const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false, opens_per(ctx.whole_filled));  // a thin shell must not leak diagonally
+    const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false);  // a thin shell must not leak diagonally
     // Fill only thick cavities (cancellous cores). A thin enclosed cavity is a
     // joint space or an occlusal gap wrapped by bone: filling it would weld
     // the condyle to its fossa, the lower teeth to the upper.
@@ -1000,9 +975,7 @@ static Result segment_located(const Volume& ct, const Options& opt, double nativ
   };
   Separated located;
   try {
-    GridContext on_coarse{native};
-    on_coarse.keep_fill = true;
-    located = separate(coarse, opt, on_coarse);
+    located = separate(coarse, opt, GridContext{native});
   } catch (const Error&) {
     return fall_back("nothing located on the coarse grid");
   }
@@ -1048,7 +1021,6 @@ static Result segment_located(const Volume& ct, const Options& opt, double nativ
   }
   GridContext in_crop{native, located.info.offset_hu, cut};
   in_crop.located = &region;
-  in_crop.whole_filled = &located.bone_filled;
   Result r;
   try {
     r = segment_on_grid(sub, opt, in_crop);
@@ -1060,12 +1032,6 @@ static Result segment_located(const Volume& ct, const Options& opt, double nativ
   // outside the crop. Mask voxels outside the located region, grown by one
   // coarse voxel: the crop found another bone, or more than the mandible.
   const Geometry& sg = sub.geom;
-  auto in_located = [&](std::size_t i, std::size_t j, std::size_t k) {
-    const Vec3 q = region.geom.lps_to_index(sg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
-    const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
-    return x >= 0 && y >= 0 && z >= 0 && x < long(region.geom.size[0]) && y < long(region.geom.size[1]) && z < long(region.geom.size[2]) &&
-           region.data[region.geom.linear(x, y, z)] != 0;
-  };
   std::size_t on_cut = 0, outside = 0, total = 0;
   for (std::size_t k = 0; k < sg.size[2]; ++k)
     for (std::size_t j = 0; j < sg.size[1]; ++j)
@@ -1074,7 +1040,7 @@ static Result segment_located(const Volume& ct, const Options& opt, double nativ
         ++total;
         on_cut += (cut[0] && i == 0) || (cut[1] && i + 1 == sg.size[0]) || (cut[2] && j == 0) || (cut[3] && j + 1 == sg.size[1]) ||
                   (cut[4] && k == 0) || (cut[5] && k + 1 == sg.size[2]);
-        outside += !in_located(i, j, k);
+        outside += !set_near(region, sg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
       }
   if (lap.on)
     std::fprintf(stderr, "  crop %zu x %zu x %zu of %zu x %zu x %zu: mask %zu voxels, %zu on cut faces, %.4f outside the located region\n",

@@ -140,7 +140,9 @@ static std::array<int, 3> contour_bins(const Vec3& spacing, const Options& opt) 
 
 // Mean of each f[0] x f[1] x f[2] block of img (blocks past the end average
 // the voxels they hold), on a grid whose voxel I is centred where its block
-// is: origin (f - 1) / 2 voxels in, spacing f voxels.
+// is: origin (f - 1) / 2 voxels in, spacing f voxels. (vtkImageShrink3D with
+// averaging keeps the block's first voxel as the sample's position: a half
+// block, 0.2 mm at 0.45 mm voxels, off.)
 static vtkSmartPointer<vtkImageData> binned(vtkImageData* img, const std::array<int, 3>& f) {
   int d[3];
   img->GetDimensions(d);
