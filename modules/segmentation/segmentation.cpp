@@ -7,7 +7,6 @@
 #include <itkRelabelComponentImageFilter.h>
 
 #include <algorithm>
-#include <chrono>
 #include <map>
 #include <cmath>
 #include <limits>
@@ -16,6 +15,7 @@
 #include <set>
 
 #include "core/distance_transform.h"
+#include "core/debug_lap.h"
 #include "core/error.h"
 #include "io/itk_geometry.h"
 
@@ -63,15 +63,8 @@ using FloatImage = itk::Image<float, 3>;
 constexpr double kSecondBoneFraction = 0.2;
 
 // MANDISYM_DEBUG_SEG=1: time of each step on stderr (profiling aid).
-struct DebugLap {
-  bool on = std::getenv("MANDISYM_DEBUG_SEG") != nullptr;
-  std::chrono::steady_clock::time_point t = std::chrono::steady_clock::now();
-  void operator()(const char* step) {
-    if (!on) return;
-    const auto now = std::chrono::steady_clock::now();
-    std::fprintf(stderr, "  seg %-22s %6.2f s\n", step, std::chrono::duration<double>(now - t).count());
-    t = now;
-  }
+struct SegLap : DebugLap {
+  SegLap() : DebugLap("MANDISYM_DEBUG_SEG", "seg") {}
 };
 
 // Calibration offset: the soft-tissue peak of the histogram (expected near
@@ -425,7 +418,7 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
 static Separated separate(const Volume& ct, const Options& opt, const GridContext& ctx) {
   Separated out;
   Result& r = out.info;
-  DebugLap lap;
+  SegLap lap;
   const Geometry& g = ct.geom;
   const double native_max_spacing = ctx.native_max_spacing;
   r.method = "auto";
@@ -603,7 +596,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
         std::size_t total = 0;
         for (std::size_t k = 1; k < piece.size(); ++k) total += piece[k];
         two_bones = piece.size() > 2 && static_cast<double>(piece[2]) >= kSecondBoneFraction * static_cast<double>(total);
-        if (lap.on)
+        if (lap.on())
           std::fprintf(stderr, "  r %.1f core one step deeper: pieces %.1f, %.1f cm3 of %.1f%s\n", pending.rr,
                        piece.size() > 1 ? piece[1] * voxel_mm3 / 1000 : 0.0, piece.size() > 2 ? piece[2] * voxel_mm3 / 1000 : 0.0,
                        total * voxel_mm3 / 1000, two_bones ? ": two bones" : "");
@@ -618,7 +611,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       t.m = cores_of(sd, rr, &t.n, &t.f);
       t.l = pick_mandible(t.f, voxel_mm3, rr, min_located);
       if (t.l) t.height = t.f[t.l].extent(2) + 2 * rr;
-      if (lap.on && t.l)
+      if (lap.on() && t.l)
         std::fprintf(stderr, "  %s r %.1f: mandible core %.1f cm3 w %.0f d %.0f h %.0f (%u cores)\n", name, rr,
                      t.f[t.l].voxels * voxel_mm3 / 1000, t.f[t.l].extent(0) + 2 * rr, t.f[t.l].extent(1) + 2 * rr, t.height, t.n);
       decide(t.m.GetPointer(), t.n);
@@ -638,7 +631,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     if (mand) break;
   }
   lap("cores");
-  if (lap.on)
+  if (lap.on())
     for (unsigned l = 1; l <= n_markers; ++l)
       std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
                    feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], l == mand ? "  <- mandible" : "");
@@ -758,7 +751,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     out.other.assign(crop_mask.size(), 0);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && !in_mandible(w[i]) && w[i] != 0;
     lap("attached parts");
-    if (lap.on) {
+    if (lap.on()) {
       std::size_t n_region = 0, n_kept = 0;
       for (std::size_t i = 0; i < crop_mask.size(); ++i) n_region += rm[i], n_kept += crop_mask[i];
       std::fprintf(stderr, "  mandible region %.1f cm3 (watershed), %.1f cm3 kept (band and thick parts)\n", n_region * voxel_mm3 / 1000, n_kept * voxel_mm3 / 1000);
@@ -785,7 +778,7 @@ static void set_truncation(Result& r) {
 // interpolation of it, which does not resolve a cortex the scan did not).
 static Result finalize(const Volume& ct, const Options& opt, const MaskImage::RegionType& separation_region,
                        std::vector<std::uint8_t> separation_mask, Result r, double native_max_spacing) {
-  DebugLap lap;
+  SegLap lap;
   const Geometry& g = ct.geom;
   // Work in the mask's bounding box with a margin of 3 voxels (the closing
   // ball's radius + 1): every step below is local, and the margin of
@@ -829,7 +822,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     const auto* fh = hi_filled->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && fh[i];
   }
-  if (lap.on) std::fprintf(stderr, "  after surface level: %zu voxels\n", static_cast<std::size_t>(std::count(crop_mask.begin(), crop_mask.end(), 1)));
+  if (lap.on()) std::fprintf(stderr, "  after surface level: %zu voxels\n", static_cast<std::size_t>(std::count(crop_mask.begin(), crop_mask.end(), 1)));
   lap("surface level");
 
   // Close small gaps (a ball of 1-2 voxels), fill the cancellous interior.
@@ -962,7 +955,7 @@ static Result segment_on_grid(const Volume& ct, const Options& opt, const GridCo
 static Result segment_located(const Volume& ct, const Options& opt, double native) {
   const Geometry& g = ct.geom;
   const GridContext whole{native};
-  DebugLap lap;
+  SegLap lap;
   std::array<unsigned, 3> f{1, 1, 1};
   for (int a = 0; a < 3; ++a)
     f[a] = opt.locate_spacing_mm > 0 ? std::max(1u, static_cast<unsigned>(std::floor(opt.locate_spacing_mm / g.spacing[a] + 1e-6))) : 1u;
@@ -970,7 +963,7 @@ static Result segment_located(const Volume& ct, const Options& opt, double nativ
   const Volume coarse = bin_average(ct, f);
   if (coarse.geom.size[0] < 16 || coarse.geom.size[1] < 16 || coarse.geom.size[2] < 16) return segment_on_grid(ct, opt, whole);
   auto fall_back = [&](const char* why) {
-    if (lap.on) std::fprintf(stderr, "  locate: %s; segmenting the whole scan\n", why);
+    if (lap.on()) std::fprintf(stderr, "  locate: %s; segmenting the whole scan\n", why);
     return segment_on_grid(ct, opt, whole);
   };
   Separated located;
@@ -1042,7 +1035,7 @@ static Result segment_located(const Volume& ct, const Options& opt, double nativ
                   (cut[4] && k == 0) || (cut[5] && k + 1 == sg.size[2]);
         outside += !set_near(region, sg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
       }
-  if (lap.on)
+  if (lap.on())
     std::fprintf(stderr, "  crop %zu x %zu x %zu of %zu x %zu x %zu: mask %zu voxels, %zu on cut faces, %.4f outside the located region\n",
                  size[0], size[1], size[2], g.size[0], g.size[1], g.size[2], total, on_cut,
                  total ? static_cast<double>(outside) / static_cast<double>(total) : 0.0);

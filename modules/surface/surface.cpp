@@ -25,6 +25,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/debug_lap.h"
 #include "core/distance_transform.h"
 #include "core/error.h"
 
@@ -33,6 +34,11 @@ namespace {
 
 template <class T>
 using Ptr = vtkSmartPointer<T>;
+
+// MANDISYM_DEBUG_SURFACE=1: time of each step on stderr (profiling aid).
+struct SurfaceLap : DebugLap {
+  SurfaceLap() : DebugLap("MANDISYM_DEBUG_SURFACE", "surface") {}
+};
 
 Mesh from_vtk(vtkPolyData* pd) {
   Mesh m;
@@ -110,7 +116,9 @@ static void finish(Result& r, const Options& opt) {
   RepairOptions ro;
   ro.target_edge_mm = opt.target_edge_mm;
   ro.remesh_iterations = opt.remesh_iterations;
+  SurfaceLap lap;
   r.repair = repair_and_remesh(r.mesh, ro);
+  lap("CGAL repair + remesh");
   if (r.mesh.faces.empty()) throw Error(ExitCode::GeometryFailed, "surface repair left no triangles");
   measure_outward(r);
 }
@@ -182,6 +190,7 @@ struct Contour {
 };
 
 static Contour contour(const Mask& mask, const Options& opt) {
+  SurfaceLap lap;
   const Geometry& g = mask.geom;
   // Crop to the mask's bounding box plus a margin of empty voxels so the
   // surface closes at the scan border.
@@ -218,7 +227,9 @@ static Contour contour(const Mask& mask, const Options& opt) {
 
   // Morphological closing by a ball of this radius (mm): fills the narrow
   // gaps that make handles, e.g. between teeth in contact.
+  lap("crop");
   if (opt.close_handles_mm > 0) close_binary(buf, dims, g.spacing.data(), opt.close_handles_mm);
+  lap("closing");
   // Fine masks: bin-average, then smooth by what the bins did not.
   std::array<double, 3> sigma_vox{};
   for (int a = 0; a < 3; ++a) {
@@ -245,12 +256,14 @@ static Contour contour(const Mask& mask, const Options& opt) {
   clean->PointMergingOn();
   clean->Update();
   vtkSmartPointer<vtkPolyData> pd = clean->GetOutput();
+  lap("smooth + flying edges");
   if (pd->GetNumberOfPolys() == 0) throw Error(ExitCode::GeometryFailed, "marching cubes produced no surface");
   return {pd, lo, pad};
 }
 
 // The contour decimated to opt.target_faces, in LPS, measured (before CGAL repair).
 static Result raw_mesh(const Contour& c, const Geometry& g, const Options& opt, bool decimate = true) {
+  SurfaceLap lap;
   vtkSmartPointer<vtkPolyData> pd = c.pd;
   const auto& lo = c.lo;
   const long pad = c.pad;
@@ -274,6 +287,7 @@ static Result raw_mesh(const Contour& c, const Geometry& g, const Options& opt, 
     v = g.index_to_lps(q[0], q[1], q[2]);
   }
   measure_outward(r);
+  lap(decimate ? "decimate + measure" : "measure");
   return r;
 }
 
