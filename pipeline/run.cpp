@@ -1,10 +1,14 @@
 // `mandisym run`: ingest -> segment -> surface -> landmarks -> reference ->
 // asymmetry -> report. Outputs are staged in a hidden folder inside OUTDIR and
 // moved into place only when every stage succeeded (results.json last), so a
-// failed or killed run never leaves a report that looks complete.
+// failed or killed run never leaves a report that looks complete. Two
+// output-only jobs run on a second thread beside the main stages: the mask
+// file and QC slices (ITK) beside surface..asymmetry, the cranial plane beside
+// asymmetry; no library is used by two threads at once.
 #include <unistd.h>
 
 #include <chrono>
+#include <future>
 #include <tuple>
 #include <cstdio>
 #include <filesystem>
@@ -19,10 +23,10 @@
 #include "landmarks/landmarks.h"
 #include "reports/render.h"
 #include "pipeline/commands.h"
+#include "pipeline/cranial.h"
 #include "reference/reference.h"
 #include "reports/figures.h"
 #include "reports/writers.h"
-#include "segmentation/cranium.h"
 #include "segmentation/segmentation.h"
 #include "surface/surface.h"
 
@@ -83,6 +87,50 @@ class Stopwatch {
 
  private:
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+// The hidden folder inside OUTDIR where outputs are written before they are
+// moved into place. Removed on destruction unless committed; OUTDIR too when
+// this run created it and left it empty (a refused input leaves nothing).
+class Staging {
+ public:
+  explicit Staging(const std::string& outdir) : outdir_(outdir) {
+    std::error_code ec;
+    created_outdir_ = !fs::exists(outdir_, ec);
+    fs::create_directories(outdir_, ec);
+    if (ec) throw Error(ExitCode::OutputFailed, outdir + ": cannot create output folder: " + ec.message());
+    dir_ = outdir_ / (".mandisym-partial-" + std::to_string(::getpid()));
+    fs::remove_all(dir_, ec);
+    fs::create_directories(dir_ / "qc", ec);
+    if (ec) throw Error(ExitCode::OutputFailed, dir_.string() + ": cannot create: " + ec.message());
+  }
+  Staging(const Staging&) = delete;
+  Staging& operator=(const Staging&) = delete;
+  ~Staging() {
+    if (committed_) return;
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+    if (created_outdir_ && fs::is_empty(outdir_, ec)) fs::remove(outdir_, ec);
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  // Moves everything into OUTDIR, results.json last (its presence marks a
+  // complete run).
+  void commit() {
+    std::error_code ec;
+    fs::remove_all(outdir_ / "qc", ec);
+    fs::remove(outdir_ / "results.json", ec);
+    for (const auto& entry : fs::directory_iterator(dir_)) {
+      if (entry.path().filename() == "results.json") continue;
+      fs::rename(entry.path(), outdir_ / entry.path().filename());
+    }
+    fs::rename(dir_ / "results.json", outdir_ / "results.json");
+    fs::remove_all(dir_, ec);
+    committed_ = true;
+  }
+
+ private:
+  fs::path outdir_, dir_;
+  bool created_outdir_ = false, committed_ = false;
 };
 
 }  // namespace
@@ -146,6 +194,13 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.grid = scan.volume.geom;
   for (const auto& w : scan.info.warnings) S.warnings.push_back("ingest: " + w);
   stage("ingest", 1);
+  const bool figures_on = !args.has("no-figures");
+  Staging staging(outdir);
+  // Work that only writes outputs runs beside the next stages on the second
+  // core (the surface stage is mostly one thread); joined before the report.
+  // Declared after `staging`: a failing run waits for them before removing it.
+  std::future<std::vector<std::string>> mask_outputs;  // mask file + QC slices
+  std::future<reference::CranialResult> cranial;
 
   // Stages 2-6: an error names the input it happened on.
   segmentation::Options so;
@@ -173,6 +228,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.seg_marker_source = seg.marker_source;
     for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
     stage("segment", 2);
+    mask_outputs = std::async(std::launch::async, [&scan, &seg, &staging, figures_on] {
+      io::write_mask(seg.mask, staging.path("mandible_mask.nii.gz"));
+      return figures_on ? reports::write_qc_slices(scan.volume, seg.mask, staging.path("qc")) : std::vector<std::string>{};
+    });
 
     // 3. surface
     surf = surface::mesh_from_mask(seg.mask, mo);
@@ -205,35 +264,16 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh);
     for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
     if (!args.has("no-cranial")) {
-      // Cranial mid-sagittal plane: bone above the condyles, mandible excluded.
-      segmentation::CraniumOptions co;
-      co.threshold_hu = seg.threshold_hu > 0 ? seg.threshold_hu : so.bone_threshold_hu;
-      Vec3 e_ml, e_ap, e_si;
-      reference::plane_frame(S.reference.plane, e_ml, e_ap, e_si);
-      co.floor.normal = e_si;
-      const Vec3 *cl = S.landmarks.landmarks.find("Co_L"), *cr = S.landmarks.landmarks.find("Co_R");
-      if (cl && cr) {
-        co.floor.point = 0.5 * (*cl + *cr);
-      } else {  // no condyles: the top of the mandible
-        co.floor.point = surf.mesh.vertices.front();
-        for (const auto& v : surf.mesh.vertices)
-          if (dot(v, e_si) > dot(co.floor.point, e_si)) co.floor.point = v;
-      }
-      try {  // optional: a failure here costs the cranial plane, not the run
-        const auto cranium = segmentation::cranium_mask(scan.volume, seg.mask, co);
-        Mesh cranium_mesh;
-        if (cranium.volume_cm3 >= 50) {
-          surface::Options cmo;
-          cmo.target_edge_mm = 0;  // no remeshing: only the mirror-ICP reads it
-          cmo.target_faces = 30000;
-          cranium_mesh = surface::mesh_from_mask(cranium.mask, cmo).mesh;
-        }
-        S.cranial = reference::cranial_plane(cranium_mesh, cranium.volume_cm3, S.reference.plane, S.landmarks.landmarks);
-      } catch (const std::exception& e) {
-        S.cranial = {};
-        S.cranial.reason = e.what();
-      }
-      if (!S.cranial.found) S.warnings.push_back("cranial plane: not fitted: " + S.cranial.reason);
+      // Cranial mid-sagittal plane (optional: a failure costs the plane, not
+      // the run), beside the asymmetry stage.
+      CranialInputs ci;
+      ci.ct = &scan.volume;
+      ci.mandible = &seg.mask;
+      ci.threshold_hu = seg.threshold_hu > 0 ? seg.threshold_hu : so.bone_threshold_hu;
+      ci.mandible_plane = S.reference.plane;
+      ci.landmarks = S.landmarks.landmarks;
+      ci.mandible_surface = &surf.mesh;
+      cranial = std::async(std::launch::async, [ci] { return fit_cranial_plane(ci); });
     }
     stage("reference", 5);
 
@@ -253,6 +293,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     if (!S.saf.per_vertex.empty()) S.saf_regions = asymmetry::regional_means(S.saf.per_vertex, areas, regions);
     S.bilateral = asymmetry::bilateral_measures(S.landmarks.landmarks, S.reference.plane);
     if (S.truncated) S.warnings.push_back("scores: the mandible is truncated; asymmetry scores are not comparable");
+    if (cranial.valid()) {
+      S.cranial = cranial.get();
+      if (!S.cranial.found) S.warnings.push_back("cranial plane: not fitted: " + S.cranial.reason);
+    }
     stage("asymmetry", 6);
 
   } catch (const Error& e) {
@@ -271,42 +315,31 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.parameters["landmark_method"] = S.landmarks.method;
 
   // ---- outputs, staged then moved into place ----
-  std::error_code ec;
-  fs::create_directories(outdir, ec);
-  if (ec) throw Error(ExitCode::OutputFailed, outdir + ": cannot create output folder: " + ec.message());
-  const fs::path stage_dir = fs::path(outdir) / (".mandisym-partial-" + std::to_string(::getpid()));
-  fs::remove_all(stage_dir, ec);
-  fs::create_directories(stage_dir / "qc", ec);
-  if (ec) throw Error(ExitCode::OutputFailed, stage_dir.string() + ": cannot create: " + ec.message());
-  try {
-    io::write_mask(seg.mask, (stage_dir / "mandible_mask.nii.gz").string());
+  {
     surface::PointArrays arrays;
     arrays["mirror_distance_mm"] = S.mirror.per_vertex;
     arrays["saf_asymmetry"] = S.saf.per_vertex.empty() ? std::vector<double>(surf.mesh.vertices.size(), 0.0) : S.saf.per_vertex;
     std::vector<double> reg(regions.label.begin(), regions.label.end());
     arrays["region"] = reg;
-    surface::write_vtp(surf.mesh, arrays, (stage_dir / "mandible.vtp").string());
-    surface::write_stl(surf.mesh, (stage_dir / "mandible.stl").string());
-    surface::write_ply(surf.mesh, (stage_dir / "mandible.ply").string());
-    reports::write_text_atomic((stage_dir / "landmarks.mrk.json").string(),
-                               reports::landmarks_markup(S.landmarks.landmarks));
-    reports::write_text_atomic((stage_dir / "symmetry_plane.mrk.json").string(),
-                               reports::plane_markup(S.reference.plane, 120.0));
+    surface::write_vtp(surf.mesh, arrays, staging.path("mandible.vtp"));
+    surface::write_stl(surf.mesh, staging.path("mandible.stl"));
+    surface::write_ply(surf.mesh, staging.path("mandible.ply"));
+    reports::write_text_atomic(staging.path("landmarks.mrk.json"), reports::landmarks_markup(S.landmarks.landmarks));
+    reports::write_text_atomic(staging.path("symmetry_plane.mrk.json"), reports::plane_markup(S.reference.plane, 120.0));
     if (S.cranial.found)
-      reports::write_text_atomic((stage_dir / "cranial_plane.mrk.json").string(), reports::plane_markup(S.cranial.plane, 160.0, "cranial mid-sagittal plane"));
-    std::vector<std::string> figures;
+      reports::write_text_atomic(staging.path("cranial_plane.mrk.json"), reports::plane_markup(S.cranial.plane, 160.0, "cranial mid-sagittal plane"));
+    const std::vector<std::string> figures = mask_outputs.get();
     std::vector<std::string> views;
     std::string views_note;
-    if (!args.has("no-figures")) {
-      figures = reports::write_qc_slices(scan.volume, seg.mask, (stage_dir / "qc").string());
+    if (figures_on) {
       // 3D views: mirror distance on a fixed +-3 mm scale (comparable between
       // scans), SAF map on 0..0.25 rad.
       reports::ColourMap mirror_cm{"mirror distance (mm)", -3.0, 3.0, true};
       reports::ColourMap saf_cm{"SAF asymmetry (rad)", 0.0, 0.25, false};
       const auto rendered = reports::render_view_sets(
           surf.mesh,
-          {{&S.mirror.per_vertex, mirror_cm, (stage_dir / "qc" / "view_mirror").string()},
-           {&S.saf.per_vertex, saf_cm, (stage_dir / "qc" / "view_saf").string()}},
+          {{&S.mirror.per_vertex, mirror_cm, staging.path("qc/view_mirror")},
+           {&S.saf.per_vertex, saf_cm, staging.path("qc/view_saf")}},
           S.landmarks.landmarks, S.reference.plane);
       for (const auto& rv : rendered) {
         if (!rv.error.empty()) {
@@ -334,30 +367,18 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       for (auto& w : S.warnings)
         for (std::size_t p = w.find(input); !input.empty() && p != std::string::npos; p = w.find(input, p))
           w.replace(p, input.size(), "<input>");
-    reports::write_text_atomic((stage_dir / "report.html").string(), reports::report_html(S, figures, views, views_note));
-    reports::write_text_atomic((stage_dir / "results.csv").string(), reports::csv_header() + reports::csv_row(S, "ok"));
+    reports::write_text_atomic(staging.path("report.html"), reports::report_html(S, figures, views, views_note));
+    reports::write_text_atomic(staging.path("results.csv"), reports::csv_header() + reports::csv_row(S, "ok"));
     for (const auto& w : S.warnings) log << "warning: " << w << "\n";
     {
       char b[64];
       std::snprintf(b, sizeof b, "total %.2f s", S.total_s);
       say(b);
     }
-    reports::write_text_atomic((stage_dir / "log.txt").string(), "mandisym " + S.tool_version + "\n" + logged_command + "\n" + log.str());
-    reports::write_text_atomic((stage_dir / "srd.json").string(), reports::srd_json(S.srd).dump(1) + "\n");
-    reports::write_text_atomic((stage_dir / "results.json").string(), reports::results_json(S).dump(2) + "\n");
-    // Move into place: everything else first, results.json last (its presence
-    // marks a complete run).
-    fs::remove_all(fs::path(outdir) / "qc", ec);
-    fs::remove(fs::path(outdir) / "results.json", ec);
-    for (const auto& entry : fs::directory_iterator(stage_dir)) {
-      if (entry.path().filename() == "results.json") continue;
-      fs::rename(entry.path(), fs::path(outdir) / entry.path().filename());
-    }
-    fs::rename(stage_dir / "results.json", fs::path(outdir) / "results.json");
-    fs::remove_all(stage_dir, ec);
-  } catch (...) {
-    fs::remove_all(stage_dir, ec);
-    throw;
+    reports::write_text_atomic(staging.path("log.txt"), "mandisym " + S.tool_version + "\n" + logged_command + "\n" + log.str());
+    reports::write_text_atomic(staging.path("srd.json"), reports::srd_json(S.srd).dump(1) + "\n");
+    reports::write_text_atomic(staging.path("results.json"), reports::results_json(S).dump(2) + "\n");
+    staging.commit();
   }
   if (!quiet) {
     for (const auto& w : S.warnings) std::cout << "warning: " << w << "\n";

@@ -9,7 +9,7 @@ namespace ms::segmentation {
 
 struct CraniumOptions {
   double threshold_hu = 250;   // bone threshold (after the scan's calibration offset)
-  double voxel_mm = 2.0;       // working grid: blocks of the input averaged to about this spacing
+  double voxel_mm = 1.0;       // working grid: blocks of the input averaged to about this spacing
   double exclusion_mm = 4.0;   // bone this close to the mandible is left out (teeth, joints)
   Plane floor;                 // bone on the side of floor.normal is kept (normal pointing superior)
 };

@@ -15,7 +15,7 @@
 #include "landmarks/landmarks.h"
 #include "phantom/phantom.h"
 #include "reference/reference.h"
-#include "segmentation/cranium.h"
+#include "pipeline/cranial.h"
 #include "surface/surface.h"
 
 namespace {
@@ -184,24 +184,19 @@ class CranialPlane : public ::testing::TestWithParam<Case> {};
 TEST_P(CranialPlane, StaysOnTheTrueMidSagittalPlaneAndMeasuresTheChinAgainstIt) {
   const Case& c = GetParam();
   const Outcome o = run(c);
-  ms::segmentation::CraniumOptions co;
-  Vec3 e_ml, e_ap, e_si;
-  ms::reference::plane_frame(o.ref.plane, e_ml, e_ap, e_si);
-  co.floor.normal = e_si;
-  co.floor.point = 0.5 * (*o.ph.landmarks.find("Co_L") + *o.ph.landmarks.find("Co_R"));
-  const auto cranium = ms::segmentation::cranium_mask(o.ph.ct, o.ph.mandible, co);
-  ms::surface::Options mo;
-  mo.target_edge_mm = 0;
-  mo.target_faces = 30000;
-  const auto mesh = ms::surface::mesh_from_mask(cranium.mask, mo).mesh;
-  const auto cr = ms::reference::cranial_plane(mesh, cranium.volume_cm3, o.ref.plane, o.ph.landmarks);
+  ms::pipeline::CranialInputs ci;
+  ci.ct = &o.ph.ct;
+  ci.mandible = &o.ph.mandible;
+  ci.mandible_plane = o.ref.plane;
+  ci.landmarks = o.ph.landmarks;  // true condylions for the floor, true Me measured
+  const auto cr = ms::pipeline::fit_cranial_plane(ci);
   ASSERT_TRUE(cr.found) << cr.reason;
   const double angle = std::acos(std::min(1.0, std::abs(ms::dot(cr.plane.normal, o.ph.plane.normal)))) * 180.0 / M_PI;
   const double offset = std::abs(cr.plane.signed_distance(o.ph.plane.point));
   const double me = cr.to_cranial_mm.at("Me"), me_own = cr.to_mandible_mm.at("Me");
   std::printf("  cranium %.0f cm3, plane %.3f deg %.3f mm from the truth (rms %.2f mm), %.2f deg to the mandible's; Me %+.2f mm "
               "to the cranial plane, %+.2f to the mandible's\n",
-              cranium.volume_cm3, angle, offset, cr.surface_rms_mm, cr.angle_to_mandible_plane_deg, me, me_own);
+              cr.bone_volume_cm3, angle, offset, cr.surface_rms_mm, cr.angle_to_mandible_plane_deg, me, me_own);
   EXPECT_LE(angle, 0.5);
   EXPECT_LE(offset, 0.5);
   EXPECT_NEAR(me, c.mirror ? -c.chin : c.chin, 0.5);
