@@ -196,17 +196,18 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   stage("ingest", 1);
   const bool figures_on = !args.has("no-figures");
   Staging staging(outdir);
-  // Work that only writes outputs runs beside the next stages on the second
-  // core (the surface stage is mostly one thread); joined before the report.
-  // Declared after `staging`: a failing run waits for them before removing it.
-  std::future<std::vector<std::string>> mask_outputs;  // mask file + QC slices
-  std::future<reference::CranialResult> cranial;
 
   // Stages 2-6: an error names the input it happened on.
   segmentation::Options so;
   segmentation::Result seg;
   surface::Result surf;
   asymmetry::Regions regions;
+  // Work that only writes outputs runs beside the next stages on the second
+  // core (the surface stage is mostly one thread); joined before the report.
+  // Declared after what they read (`scan`, `seg`, `surf`) and after `staging`:
+  // a failing run waits for them before any of those is destroyed.
+  std::future<std::vector<std::string>> mask_outputs;  // mask file + QC slices
+  std::future<reference::CranialResult> cranial;
   try {
     // 2. segmentation
     so.bone_threshold_hu = args.number("bone-threshold", so.bone_threshold_hu);

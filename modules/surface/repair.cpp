@@ -4,7 +4,6 @@
 #include "surface/surface.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Polygon_mesh_processing/compute_normal.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/orientation.h>
@@ -15,9 +14,6 @@
 #include <CGAL/Polygon_mesh_processing/repair_self_intersections.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
-#include <CGAL/AABB_face_graph_triangle_primitive.h>
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
 #include <CGAL/Surface_mesh.h>
 
 #include <array>
@@ -32,7 +28,6 @@ namespace {
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using SM = CGAL::Surface_mesh<K::Point_3>;
 namespace PMP = CGAL::Polygon_mesh_processing;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, CGAL::AABB_face_graph_triangle_primitive<SM>>>;
 
 std::size_t count_self_intersections(const SM& sm) {
   std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
@@ -85,23 +80,9 @@ RepairReport repair_and_remesh(Mesh& mesh, const RepairOptions& opt) {
   lap("  holes, intersections");
 
   if (opt.target_edge_mm > 0) {
-    // Vertices go back onto the repaired surface once, after the last
-    // iteration, not after every relaxation step (CGAL's do_project): the
-    // same final surface (every vertex on it) at 60 % of the time; the
-    // tangential steps in between leave it by at most ~0.25 mm at 1 mm edges.
-    const SM input = sm;
-    Tree tree(faces(input).first, faces(input).second, input);
-    tree.accelerate_distance_queries();
     PMP::isotropic_remeshing(faces(sm), opt.target_edge_mm, sm,
-                             CGAL::parameters::number_of_iterations(opt.remesh_iterations).number_of_relaxation_steps(1).do_project(false));
+                             CGAL::parameters::number_of_iterations(opt.remesh_iterations).number_of_relaxation_steps(1));
     sm.collect_garbage();
-    // A vertex goes to the closest point of a face facing the same way; where
-    // two sheets almost touch (teeth in contact) the closest point can be on
-    // the other one, and snapping there folds the surface: it stays put.
-    for (auto v : sm.vertices()) {
-      const auto [p, f] = tree.closest_point_and_primitive(sm.point(v));
-      if (PMP::compute_face_normal(f, input) * PMP::compute_vertex_normal(v, sm) > 0) sm.point(v) = p;
-    }
     lap("  isotropic remeshing");
     rep.remeshed = true;
     if (!CGAL::is_closed(sm)) rep.holes_filled += fill_holes(sm);

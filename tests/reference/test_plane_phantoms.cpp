@@ -70,8 +70,9 @@ Outcome run(const Case& c) {
   const auto regions = ms::asymmetry::assign_regions(surf.mesh, lm.landmarks);
   o.mirror = ms::asymmetry::mirror_distance(surf.mesh, o.ref.plane, regions, &lm.landmarks);
   o.bilateral = ms::asymmetry::bilateral_measures(lm.landmarks, o.ref.plane);
-  std::printf("%s: plane %.2f deg %.2f mm, mean|d| %.3f mm, fit %.2f s (%zu vertices)\n", c.name, o.angle_deg, o.offset_mm,
-              o.mirror.overall.mean_abs, t, surf.mesh.vertices.size());
+  const auto rh = o.bilateral.find("ramus_height_mm");
+  std::printf("%s: plane %.2f deg %.2f mm, mean|d| %.3f mm, ramus L-R %+.2f mm, fit %.2f s (%zu vertices)\n", c.name, o.angle_deg,
+              o.offset_mm, o.mirror.overall.mean_abs, rh == o.bilateral.end() ? 0.0 : rh->second.diff, t, surf.mesh.vertices.size());
   return o;
 }
 
