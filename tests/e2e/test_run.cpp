@@ -4,6 +4,9 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstring>
+#include <zlib.h>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -208,6 +211,39 @@ TEST(EndToEnd, UsageErrorsExitWithCode2) {
   EXPECT_EQ(run("frobnicate"), 2);
   EXPECT_EQ(run("run x -o y --no-such-option"), 2);
   EXPECT_EQ(run("phantom -o /tmp/x --noise abc"), 2);
+}
+
+// A stage that fails after the segmentation, while the mask file and QC
+// slices are still being written on the second thread: one line, the
+// documented exit code, and no output folder left behind (the background
+// job must finish before the mask it reads and the staging folder go).
+TEST(EndToEnd, FailureAfterSegmentationLeavesNothing) {
+  const fs::path ph = temp_dir("onevox_phantom"), out = temp_dir("onevox_out");
+  ASSERT_EQ(run("phantom -o " + ph.string() + " --spacing 2 --fov 120,110,110 --seed 5 --no-preview"), 0);
+  // The ground-truth mask (same grid as the CT) with a single voxel left:
+  // segmentation accepts it, the surface stage then has nothing to contour.
+  std::string nii;
+  {
+    gzFile f = gzopen((ph / "ground_truth" / "mandible_mask.nii.gz").c_str(), "rb");
+    ASSERT_NE(f, nullptr);
+    char buf[65536];
+    for (int n; (n = gzread(f, buf, sizeof buf)) > 0;) nii.append(buf, static_cast<std::size_t>(n));
+    gzclose(f);
+  }
+  ASSERT_GT(nii.size(), 352u);
+  float vox_offset = 0;
+  std::memcpy(&vox_offset, nii.data() + 108, 4);
+  const std::size_t start = static_cast<std::size_t>(vox_offset);
+  ASSERT_LT(start, nii.size());
+  std::fill(nii.begin() + static_cast<std::ptrdiff_t>(start), nii.end(), '\0');
+  nii[start + (nii.size() - start) / 2] = 1;
+  const fs::path mask = ph / "one_voxel.nii";
+  std::ofstream(mask, std::ios::binary) << nii;
+  std::string err;
+  EXPECT_EQ(run("run " + (ph / "dicom").string() + " --mask " + mask.string() + " -o " + out.string(), &err), 6) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_FALSE(fs::exists(out)) << "a failed run left its output folder";
+  fs::remove_all(ph);
 }
 
 TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
