@@ -5,7 +5,10 @@
 // output-only jobs run on a second thread beside the main stages: the mask
 // file and QC slices (ITK) beside surface..asymmetry, the cranial plane beside
 // asymmetry; no library is used by two threads at once.
+#include <signal.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <chrono>
 #include <future>
@@ -15,6 +18,7 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <vector>
 
 #include "asymmetry/measures.h"
 #include "asymmetry/saf.h"
@@ -101,6 +105,7 @@ class Staging {
     if (ec) throw Error(ExitCode::OutputFailed, outdir + ": cannot create output folder: " + ec.message());
     dir_ = outdir_ / (".mandisym-partial-" + std::to_string(::getpid()));
     fs::remove_all(dir_, ec);
+    remove_stale();
     fs::create_directories(dir_ / "qc", ec);
     if (ec) throw Error(ExitCode::OutputFailed, dir_.string() + ": cannot create: " + ec.message());
   }
@@ -113,6 +118,23 @@ class Staging {
     if (created_outdir_ && fs::is_empty(outdir_, ec)) fs::remove(outdir_, ec);
   }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  // Staging folders of runs that were killed (Ctrl-C, a batch interrupted,
+  // out of memory) stay behind; the next run into the folder removes those
+  // whose process is gone. A live one (another run writing here) is left.
+  void remove_stale() const {
+    std::error_code ec;
+    const std::string prefix = ".mandisym-partial-";
+    std::vector<fs::path> stale;
+    for (const auto& e : fs::directory_iterator(outdir_, ec)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind(prefix, 0) != 0 || name.size() == prefix.size()) continue;
+      const std::string digits = name.substr(prefix.size());
+      if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
+      const pid_t pid = static_cast<pid_t>(std::stol(digits));
+      if (pid > 0 && pid != ::getpid() && ::kill(pid, 0) != 0 && errno == ESRCH) stale.push_back(e.path());
+    }
+    for (const auto& p : stale) fs::remove_all(p, ec);
+  }
   // Moves everything into OUTDIR, results.json last (its presence marks a
   // complete run).
   void commit() {

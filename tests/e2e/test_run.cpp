@@ -246,6 +246,24 @@ TEST(EndToEnd, FailureAfterSegmentationLeavesNothing) {
   fs::remove_all(ph);
 }
 
+// A run killed mid-way leaves its hidden staging folder; the next run into
+// the same folder removes it when its process is gone, and leaves one whose
+// process is alive (PID 1 always is) alone.
+TEST(EndToEnd, NextRunRemovesStagingFoldersOfKilledRuns) {
+  const fs::path out = temp_dir("stale_out");
+  const fs::path dead = out / ".mandisym-partial-999999999", live = out / ".mandisym-partial-1";
+  fs::create_directories(dead / "qc");
+  fs::create_directories(live);
+  std::ofstream(dead / "mandible.stl") << "left by a killed run";
+  std::string err;
+  ASSERT_EQ(run("run " + (kSamples / "symmetric" / "dicom").string() + " -o " + out.string() + " --no-figures --no-cranial -q", &err), 0)
+      << err;
+  EXPECT_TRUE(fs::exists(out / "results.json"));
+  EXPECT_FALSE(fs::exists(dead));
+  EXPECT_TRUE(fs::exists(live));
+  fs::remove_all(out);
+}
+
 TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
   const fs::path out = temp_dir("phantom");
   ASSERT_EQ(run("phantom -o " + out.string() + " --spacing 2 --fov 120,110,110 --seed 5 --ramus-R 3 --no-preview"), 0);
