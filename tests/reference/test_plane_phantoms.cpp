@@ -198,8 +198,10 @@ TEST_P(CranialPlane, StaysOnTheTrueMidSagittalPlaneAndMeasuresTheChinAgainstIt) 
   std::printf("  cranium %.0f cm3, plane %.3f deg %.3f mm from the truth (rms %.2f mm), %.2f deg to the mandible's; Me %+.2f mm "
               "to the cranial plane, %+.2f to the mandible's\n",
               cr.bone_volume_cm3, angle, offset, cr.surface_rms_mm, cr.angle_to_mandible_plane_deg, me, me_own);
-  EXPECT_LE(angle, 0.5);
-  EXPECT_LE(offset, 0.5);
+  // Measured 0.016-0.11 deg, 0.006-0.03 mm on 1 mm blocks; the 2 mm blocks
+  // it replaced were 0.27-0.40 deg off on the posed cases (docs/method.md).
+  EXPECT_LE(angle, 0.2);
+  EXPECT_LE(offset, 0.2);
   EXPECT_NEAR(me, c.mirror ? -c.chin : c.chin, 0.5);
   if (c.chin > 0) EXPECT_LT(std::abs(me_own), std::abs(me) - 0.5);
 }
