@@ -275,9 +275,25 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       S.warnings.push_back("surface: " + std::to_string(surf.repair.self_intersections_after) + " self-intersecting triangle pairs remain");
     stage("surface", 3);
 
-    // 4. landmarks
+    // 4. landmarks, in the head's frame: the mandible's symmetry plane gives
+    //    yaw and roll, the palatal plane (nasal floor) gives pitch.
     landmarks::Options lo;
     if (seg.truncated) lo.scan_grid = &seg.mask.geom;  // landmarks at the cut are missing, not guessed
+    lo.plane = landmarks::mandible_plane(surf.mesh);
+    {
+      landmarks::PalateOptions po;
+      po.plate_hu += seg.offset_hu;
+      po.air_hu += seg.offset_hu;
+      S.palate = landmarks::find_palatal_plane(scan.volume, surf.mesh, *lo.plane, po);
+    }
+    if (S.palate.found) {
+      lo.superior = S.palate.superior;
+      if (S.palate.floor != "air")
+        S.warnings.push_back("landmarks: the palatal plane was fitted to a nasal floor under soft tissue (no air in the nasal "
+                             "cavity): check it on qc_head_frame.png");
+    } else
+      S.warnings.push_back("landmarks: palatal plane not found (" + S.palate.reason +
+                           "): 'superior' is the scan's axis, so a pitched head moves Me, Pog and Cr");
     S.landmarks = landmarks::detect(surf.mesh, lo);
     for (const auto& w : S.landmarks.warnings) S.warnings.push_back(w);
     for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
@@ -351,7 +367,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     reports::write_text_atomic(staging.path("symmetry_plane.mrk.json"), reports::plane_markup(S.reference.plane, 120.0));
     if (S.cranial.found)
       reports::write_text_atomic(staging.path("cranial_plane.mrk.json"), reports::plane_markup(S.cranial.plane, 160.0, "cranial mid-sagittal plane"));
-    const std::vector<std::string> figures = mask_outputs.get();
+    std::vector<std::string> figures = mask_outputs.get();
+    if (figures_on && reports::write_head_frame_slice(scan.volume, S.landmarks.plane, S.palate, S.landmarks.landmarks,
+                                                      staging.path("qc/qc_head_frame.png")))
+      figures.push_back(staging.path("qc/qc_head_frame.png"));
     std::vector<std::string> views;
     std::string views_note;
     if (figures_on) {

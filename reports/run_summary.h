@@ -11,6 +11,7 @@
 #include "asymmetry/srd.h"
 #include "core/types.h"
 #include "landmarks/landmarks.h"
+#include "landmarks/palate.h"
 #include "reference/reference.h"
 #include "segmentation/segmentation.h"
 #include "surface/surface.h"
@@ -33,6 +34,7 @@ struct RunSummary {
   double closing_mm = 0;          // closing before meshing (0 = none)
   int genus_before_closing = -1;  // genus of the unclosed surface when automatic closing ran
   landmarks::Result landmarks;
+  landmarks::PalatalPlane palate;  // the head's superior direction (found = false: the scan's +S was used)
   reference::Result reference;
   reference::CranialResult cranial;  // found = false when not fitted (reason) or --no-cranial
   asymmetry::SafResult saf;

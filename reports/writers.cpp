@@ -176,6 +176,22 @@ json::Value results_json(const RunSummary& s) {
   missing = Value::array();
   for (const auto& m : s.landmarks.missing) missing.push_back(m);
 
+  auto& hf = root["head_frame"];
+  hf["superior"] = vec(s.palate.found ? s.palate.superior : Vec3{0, 0, 1});
+  hf["source"] = s.palate.found ? "palatal plane" : "scan axes";
+  if (s.palate.found) {
+    hf["palatal_tilt_deg"] = s.palate.tilt_deg;
+    hf["palatal_samples"] = s.palate.samples;
+    hf["palatal_floor"] = s.palate.floor;
+    hf["palatal_length_mm"] = s.palate.length_mm;
+    hf["palatal_rms_mm"] = s.palate.rms_mm;
+    hf["palatal_line"] = Value::array();
+    hf["palatal_line"].push_back(vec(s.palate.anterior));
+    hf["palatal_line"].push_back(vec(s.palate.posterior));
+  } else {
+    hf["palatal_tilt_deg"] = Value();
+    hf["reason"] = s.palate.reason;
+  }
   auto& pl = root["symmetry_plane"];
   pl["point"] = vec(s.reference.plane.point);
   pl["normal"] = vec(s.reference.plane.normal);
@@ -494,9 +510,16 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     h << "</div>\n";
   }
 
+  std::string head_frame_figure;
   if (!figures.empty()) {
     h << "<h2>Segmentation QC</h2>\n";
-    for (const auto& f : figures) embed(f, std::filesystem::path(f).stem().string());
+    for (const auto& f : figures) {
+      const std::string stem = std::filesystem::path(f).stem().string();
+      if (stem == "qc_head_frame")
+        head_frame_figure = f;  // shown with the landmarks
+      else
+        embed(f, stem);
+    }
   }
 
   h << "<h2>Landmarks (LPS mm)</h2>\n<table><tr><th>landmark</th><th>x (L)</th><th>y (P)</th><th>z (S)</th>"
@@ -515,6 +538,17 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   }
   h << "</table>\n<p class=\"muted\">Last three columns: detected minus symmetric reference configuration, in the "
        "symmetry plane's frame (mm).</p>\n";
+  if (s.palate.found)
+    h << "<p>Head frame: left/right from the mandible's symmetry plane; superior is the normal of the palatal plane, fitted to "
+         "the nasal floor (" << s.palate.samples << " samples over " << fixed(s.palate.length_mm, 0) << " mm, residual "
+      << fixed(s.palate.rms_mm) << " mm), which is tilted " << fixed(s.palate.tilt_deg, 1)
+      << "&deg; to the scan's axial plane (+: posterior end higher, head flexed). Co and Cr are the most superior points, "
+         "Me the lowest and Pog the most anterior in this frame, whatever the head's pitch in the scanner.</p>\n";
+  else
+    h << "<p>Head frame: palatal plane not found (" << E(s.palate.reason) << "); superior is the scan's axis, so a head "
+         "pitched in the scanner moves Me, Pog and Cr along their borders.</p>\n";
+  if (!head_frame_figure.empty())
+    embed(head_frame_figure, "qc_head_frame: mid-sagittal slice, anterior left; palatal line (cyan), Me and Pog (green)");
 
   h << "<h2>Bilateral measures</h2>\n<table><tr><th>measure</th><th>left</th><th>right</th><th>L&minus;R</th>"
        "<th>L/R</th></tr>\n";

@@ -1,6 +1,8 @@
 #include "core/types.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace ms {
@@ -23,6 +25,28 @@ Vec3 Geometry::lps_to_index(const Vec3& p) const {
     idx[c] = s / spacing[c];
   }
   return idx;
+}
+
+double interpolate(const Volume& volume, const Vec3& lps) {
+  const Geometry& g = volume.geom;
+  const Vec3 q = g.lps_to_index(lps);
+  std::size_t i0[3];
+  double f[3];
+  for (int a = 0; a < 3; ++a) {
+    const double last = static_cast<double>(g.size[a]) - 1.0;
+    if (g.size[a] < 2 || !(q[a] >= 0.0) || q[a] > last) return std::numeric_limits<double>::quiet_NaN();
+    const double fl = std::min(std::floor(q[a]), last - 1.0);
+    i0[a] = static_cast<std::size_t>(fl);
+    f[a] = q[a] - fl;
+  }
+  double v = 0;
+  for (int dz = 0; dz < 2; ++dz)
+    for (int dy = 0; dy < 2; ++dy)
+      for (int dx = 0; dx < 2; ++dx) {
+        const double w = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+        if (w > 0) v += w * volume.hu[g.linear(i0[0] + dx, i0[1] + dy, i0[2] + dz)];
+      }
+  return v;
 }
 
 bool Geometry::same_grid(const Geometry& o, double tol) const {

@@ -41,6 +41,9 @@ struct Volume {
   std::vector<float> hu;
 };
 
+// Trilinear HU at an LPS point; NaN outside the grid (between voxel centres).
+double interpolate(const Volume& volume, const Vec3& lps);
+
 // Binary mask (0/1) on a grid.
 struct Mask {
   Geometry geom;

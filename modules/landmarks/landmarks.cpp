@@ -171,6 +171,19 @@ Vec3 refine_extreme(const std::vector<Vec3>& V, int top, const Vec3& ex, const V
 
 }  // namespace
 
+Plane mandible_plane(const Mesh& mesh) {
+  Vec3 c{0, 0, 0};
+  for (const auto& v : mesh.vertices) c = c + v;
+  c = (1.0 / static_cast<double>(std::max<std::size_t>(1, mesh.vertices.size()))) * c;
+  reference::Options ro;
+  ro.icp_rounds = 8;
+  ro.icp_cauchy_mm = 0;  // a frame for labelling: the Huber fit is enough
+  Plane pl = reference::refine_plane_on_surface(mesh, Plane{c, Vec3{1, 0, 0}}, ro);
+  if (pl.normal[0] < 0) pl.normal = -1.0 * pl.normal;
+  pl.point = c - pl.signed_distance(c) * pl.normal;
+  return pl;
+}
+
 Result detect(const Mesh& mesh, const Options& opt) {
   Result r;
   r.method = "geodesic extremities + symmetry-plane frame";
@@ -181,20 +194,11 @@ Result detect(const Mesh& mesh, const Options& opt) {
     r.warnings.push_back("landmarks: the surface is too small");
     return r;
   }
-  Vec3 c{0, 0, 0};
-  for (const auto& v : V) c = c + v;
-  c = (1.0 / static_cast<double>(n)) * c;
-
-  // 1. Frame: the mandible's own symmetry plane, from the scan's sagittal
-  //    plane through the centroid (head pose within ~20 degrees).
-  reference::Options ro;
-  ro.icp_rounds = 8;
-  ro.icp_cauchy_mm = 0;  // a frame for labelling: the Huber fit is enough
-  r.plane = reference::refine_plane_on_surface(mesh, Plane{c, Vec3{1, 0, 0}}, ro);
-  if (r.plane.normal[0] < 0) r.plane.normal = -1.0 * r.plane.normal;
-  r.plane.point = c - r.plane.signed_distance(c) * r.plane.normal;
+  // 1. Frame: the mandible's own symmetry plane (yaw, roll) and the head's
+  //    superior direction (pitch, when given).
+  r.plane = opt.plane ? *opt.plane : mandible_plane(mesh);
   Vec3 e_ml, e_ap, e_si;
-  reference::plane_frame(r.plane, e_ml, e_ap, e_si);
+  reference::plane_frame(r.plane, e_ml, e_ap, e_si, opt.superior);
   std::vector<double> U(n), A(n), H(n);
   double umax = 0;
   for (std::size_t i = 0; i < n; ++i) {

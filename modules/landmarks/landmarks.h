@@ -6,6 +6,7 @@
 // tangents of the ramus and lower border give the gonial angle.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,13 @@ struct Options {
   // When set, landmarks within 1.5 voxels of a face of this grid are reported
   // missing (the mandible is cut there: the extreme point is not in the scan).
   const Geometry* scan_grid = nullptr;
+  // The head's superior direction (LPS). "Most superior", "lowest" and "most
+  // anterior" are taken in the symmetry plane's frame built on it. Default:
+  // the scan's +S (head pitch then moves Me, Cr and Pog); the pipeline passes
+  // the palatal plane's normal (palate.h).
+  Vec3 superior{0, 0, 1};
+  // The mandible's symmetry plane when already fitted (mandible_plane()).
+  std::optional<Plane> plane;
 };
 
 struct Result {
@@ -33,5 +41,10 @@ struct Result {
 };
 
 Result detect(const Mesh& mesh, const Options& options = {});
+
+// The mandible's own symmetry plane (normal to the patient's left): mirror-ICP
+// from the scan's sagittal plane through the centroid (head pose within
+// about 20 degrees). detect() fits it unless Options::plane is given.
+Plane mandible_plane(const Mesh& mesh);
 
 }  // namespace ms::landmarks

@@ -213,6 +213,7 @@ Phantom generate(const PhantomParams& params) {
   for (const auto& [name, p] : anat.landmarks().points) out.landmarks.set(name, to_lps(p));
   out.plane.point = to_lps(Vec3{0, 0, 0});
   out.plane.normal = apply(R, Vec3{1, 0, 0});
+  out.superior = apply(R, Vec3{0, 0, 1});
   out.truth.side = P.side;
   out.truth.chin_deviation_mm = P.chin_deviation_mm;
 
@@ -235,6 +236,7 @@ Phantom generate(const PhantomParams& params) {
     out.landmarks = m;
     out.plane.point = refl(out.plane.point);
     out.plane.normal = {out.plane.normal[0], -out.plane.normal[1], -out.plane.normal[2]};
+    out.superior[0] = -out.superior[0];
     std::swap(out.truth.side[0], out.truth.side[1]);
     out.truth.chin_deviation_mm = -out.truth.chin_deviation_mm;
   }

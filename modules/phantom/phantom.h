@@ -56,6 +56,7 @@ struct Phantom {
   Mask mandible;        // ground-truth mandible incl. lower teeth, on the CT grid
   LandmarkSet landmarks;  // METHOD.md §2 names, LPS mm
   Plane plane;          // true symmetry plane of the unmodified anatomy (normal to patient left)
+  Vec3 superior{0, 0, 1};  // the head frame's superior axis in LPS (the palate is perpendicular to it)
   AsymmetryTruth truth;
   PhantomParams params;
 };

@@ -201,9 +201,9 @@ AlignResult align_rigid_from(const Mesh& moving, const geometry::ClosestPointInd
   return res;
 }
 
-void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si) {
+void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si, const Vec3& superior) {
   e_ml = normalized(plane.normal);
-  Vec3 up{0, 0, 1};
+  Vec3 up = normalized(superior);
   if (std::abs(dot(up, e_ml)) > 0.9) up = {0, 1, 0};
   e_si = normalized(up - dot(up, e_ml) * e_ml);
   e_ap = cross(e_si, e_ml);

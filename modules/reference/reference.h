@@ -102,8 +102,9 @@ AlignResult align_rigid_from(const Mesh& moving, const geometry::ClosestPointInd
 // no pairs.
 RigidTransform kabsch(const std::vector<std::pair<Vec3, Vec3>>& pairs);
 
-// Orthonormal frame of a symmetry plane: e_ml = normal, e_si = superior
-// projected into the plane, e_ap = e_si x e_ml (posterior).
-void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si);
+// Orthonormal frame of a symmetry plane: e_ml = normal, e_si = `superior`
+// (default: the scan's +S) projected into the plane, e_ap = e_si x e_ml
+// (posterior).
+void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si, const Vec3& superior = Vec3{0, 0, 1});
 
 }  // namespace ms::reference
