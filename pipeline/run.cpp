@@ -300,7 +300,9 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     stage("landmarks", 4);
 
     // 5. symmetry plane + reference configuration
-    S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh);
+    reference::Options ro_fit;
+    ro_fit.superior = lo.superior;  // asymmetry vectors in the head's frame, like the landmarks
+    S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh, ro_fit);
     for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
     if (!args.has("no-cranial")) {
       // Cranial mid-sagittal plane (optional: a failure costs the plane, not
@@ -382,7 +384,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
           surf.mesh,
           {{&S.mirror.per_vertex, mirror_cm, staging.path("qc/view_mirror")},
            {&S.saf.per_vertex, saf_cm, staging.path("qc/view_saf")}},
-          S.landmarks.landmarks, S.reference.plane);
+          S.landmarks.landmarks, S.reference.plane, 520, 420, S.head_superior());
       for (const auto& rv : rendered) {
         if (!rv.error.empty()) {
           views_note = rv.error;

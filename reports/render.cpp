@@ -63,7 +63,7 @@ Ptr<vtkLookupTable> lookup(const ColourMap& c) {
 }  // namespace
 
 std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<ViewSet>& sets, const LandmarkSet& landmarks,
-                                            const Plane& plane, int width, int height) {
+                                            const Plane& plane, int width, int height, const Vec3& superior) {
   std::vector<RenderedViews> all(sets.size());
   auto fail = [&](const std::string& why) {
     for (auto& o : all) {
@@ -116,7 +116,7 @@ std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<
 
   // Frame of the symmetry plane; the view directions follow it, so a posed
   // head is shown upright.
-  const PlaneFrame frame = plane_frame(mesh, plane);  // shared with the interactive viewer
+  const PlaneFrame frame = plane_frame(mesh, plane, superior);  // shared with the interactive viewer
   const Vec3 ml = frame.x, si = frame.y, ap = -1.0 * frame.z;  // ap: posterior
   double b[6];
   pd->GetBounds(b);

@@ -34,7 +34,8 @@ struct ViewSet {
 // Every set through one window (one OpenGL context). Never throws: on failure
 // every result carries the error and no file is kept.
 std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<ViewSet>& sets, const LandmarkSet& landmarks,
-                                            const Plane& plane, int width = 520, int height = 420);
+                                            const Plane& plane, int width = 520, int height = 420,
+                                            const Vec3& superior = Vec3{0, 0, 1});
 
 // Writes prefix_{front,below,left,right}.png. Never throws: on failure the
 // error says why (no display, no Xvfb, OpenGL failure) and no file is kept.

@@ -35,6 +35,7 @@ struct RunSummary {
   int genus_before_closing = -1;  // genus of the unclosed surface when automatic closing ran
   landmarks::Result landmarks;
   landmarks::PalatalPlane palate;  // the head's superior direction (found = false: the scan's +S was used)
+  Vec3 head_superior() const { return palate.found ? palate.superior : Vec3{0, 0, 1}; }
   reference::Result reference;
   reference::CranialResult cranial;  // found = false when not fitted (reason) or --no-cranial
   asymmetry::SafResult saf;

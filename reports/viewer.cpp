@@ -56,12 +56,13 @@ Vec3 PlaneFrame::to_frame(const Vec3& p) const {
   return {dot(d, x), dot(d, y), dot(d, z)};
 }
 
-PlaneFrame plane_frame(const Mesh& mesh, const Plane& plane) {
+PlaneFrame plane_frame(const Mesh& mesh, const Plane& plane, const Vec3& superior) {
   PlaneFrame f;
-  // Medio-lateral = the plane normal, superior = LPS +z made orthogonal to it,
-  // anterior completes a right-handed frame (the static views use it too).
+  // Medio-lateral = the plane normal, superior = the head's superior made
+  // orthogonal to it, anterior completes a right-handed frame (the static
+  // views use it too).
   f.x = normalized(plane.normal);
-  Vec3 up{0, 0, 1};
+  Vec3 up = normalized(superior);
   if (std::abs(dot(up, f.x)) > 0.9) up = {0, 1, 0};
   f.y = normalized(up - dot(up, f.x) * f.x);
   f.z = cross(f.x, f.y);

@@ -21,7 +21,8 @@ struct PlaneFrame {
   Vec3 x{1, 0, 0}, y{0, 0, 1}, z{0, -1, 0};
   Vec3 to_frame(const Vec3& p) const;
 };
-PlaneFrame plane_frame(const Mesh& mesh, const Plane& plane);
+// superior: the head's (e.g. the palatal plane's normal), made orthogonal to the normal.
+PlaneFrame plane_frame(const Mesh& mesh, const Plane& plane, const Vec3& superior = Vec3{0, 0, 1});
 
 // What the viewer draws, in the plane frame.
 struct ViewerMesh {

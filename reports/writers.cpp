@@ -177,7 +177,7 @@ json::Value results_json(const RunSummary& s) {
   for (const auto& m : s.landmarks.missing) missing.push_back(m);
 
   auto& hf = root["head_frame"];
-  hf["superior"] = vec(s.palate.found ? s.palate.superior : Vec3{0, 0, 1});
+  hf["superior"] = vec(s.head_superior());
   hf["source"] = s.palate.found ? "palatal plane" : "scan axes";
   if (s.palate.found) {
     hf["palatal_tilt_deg"] = s.palate.tilt_deg;
@@ -423,7 +423,7 @@ std::string viewer_html(const RunSummary& s) {
   if (s.surface.vertices.empty() || s.surface.vertices.size() != s.mirror.per_vertex.size())
     return "<p class=\"muted\">Interactive 3D view not embedded: no surface with per-vertex results.</p>\n";
   try {
-    const PlaneFrame frame = plane_frame(s.surface, s.reference.plane);
+    const PlaneFrame frame = plane_frame(s.surface, s.reference.plane, s.head_superior());
     const ViewerMesh vm = viewer_mesh(s.surface, s.mirror.per_vertex, s.saf.per_vertex, frame);
     return viewer_section_html(vm, frame, s.reference.plane, s.landmarks.landmarks);
   } catch (const std::exception& e) {

@@ -370,7 +370,7 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
     res.reference.set(mid_names[i], m - pl.signed_distance(m) * pl.normal);
   }
   Vec3 e_ml, e_ap, e_si;
-  plane_frame(res.plane, e_ml, e_ap, e_si);
+  plane_frame(res.plane, e_ml, e_ap, e_si, opt.superior);
   for (const auto& [name, ref] : res.reference.points) {
     const Vec3 dv = *det.find(name) - ref;
     ss += dot(dv, dv);

@@ -26,6 +26,7 @@ struct Options {
   std::size_t icp_samples = 4000;   // surface vertices used per round
   double icp_huber_mm = 1.0;
   double icp_cauchy_mm = 0.25;      // scale of the redescending rounds after the Huber rounds (0 = none)
+  Vec3 superior{0, 0, 1};           // the head's superior (LPS) for the asymmetry vectors' frame
 };
 
 struct Result {
