@@ -17,7 +17,9 @@
 #include <CGAL/Surface_mesh.h>
 
 #include <array>
+#include <cstdio>
 #include <iterator>
+#include <set>
 #include <vector>
 
 #include "core/debug_lap.h"
@@ -29,12 +31,6 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using SM = CGAL::Surface_mesh<K::Point_3>;
 namespace PMP = CGAL::Polygon_mesh_processing;
 
-std::size_t count_self_intersections(const SM& sm) {
-  std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
-  PMP::self_intersections<CGAL::Parallel_if_available_tag>(faces(sm), sm, std::back_inserter(pairs));
-  return pairs.size();
-}
-
 // Fills every hole (border cycle) with a refined, faired patch.
 std::size_t fill_holes(SM& sm) {
   std::vector<SM::Halfedge_index> borders;
@@ -45,6 +41,43 @@ std::size_t fill_holes(SM& sm) {
     PMP::triangulate_refine_and_fair_hole(sm, h, std::back_inserter(patch_faces), std::back_inserter(patch_vertices));
   }
   return borders.size();
+}
+
+using FacePairs = std::vector<std::pair<SM::Face_index, SM::Face_index>>;
+
+FacePairs self_intersecting_pairs(const SM& sm) {
+  FacePairs pairs;
+  PMP::self_intersections<CGAL::Parallel_if_available_tag>(faces(sm), sm, std::back_inserter(pairs));
+  return pairs;
+}
+
+std::size_t count_self_intersections(const SM& sm) { return self_intersecting_pairs(sm).size(); }
+
+// Removes the self-intersections of the given pairs working on their
+// neighbourhood only (3 rings of faces around them): CGAL's repair searches
+// its whole range for intersections at every step (7 steps at most), which
+// on a 70k-face mandible with 3 pairs took 0.8 s. Returns the pairs left in
+// the whole mesh; when some remain, the repair runs once more on every face.
+// Holes the repair leaves are filled (counted in holes_filled).
+FacePairs remove_self_intersections_near(SM& sm, const FacePairs& pairs, std::size_t& holes_filled) {
+  std::set<SM::Face_index> region;
+  for (const auto& [a, b] : pairs) region.insert({a, b});
+  for (int ring = 0; ring < 3; ++ring) {
+    const std::vector<SM::Face_index> current(region.begin(), region.end());
+    for (SM::Face_index f : current)
+      for (SM::Vertex_index v : vertices_around_face(sm.halfedge(f), sm))
+        for (SM::Face_index g : faces_around_target(sm.halfedge(v), sm))
+          if (g != SM::null_face()) region.insert(g);
+  }
+  PMP::experimental::remove_self_intersections(region, sm);
+  holes_filled += fill_holes(sm);
+  FacePairs left = self_intersecting_pairs(sm);
+  if (!left.empty()) {
+    PMP::experimental::remove_self_intersections(sm);
+    holes_filled += fill_holes(sm);
+    left = self_intersecting_pairs(sm);
+  }
+  return left;
 }
 
 }  // namespace
@@ -86,16 +119,18 @@ RepairReport repair_and_remesh(Mesh& mesh, const RepairOptions& opt) {
     lap("  isotropic remeshing");
     rep.remeshed = true;
     if (!CGAL::is_closed(sm)) rep.holes_filled += fill_holes(sm);
-    rep.self_intersections_after = count_self_intersections(sm);
-    if (rep.self_intersections_after > 0) {
-      CGAL::Polygon_mesh_processing::experimental::remove_self_intersections(sm);
-      rep.holes_filled += fill_holes(sm);
-      rep.self_intersections_after = count_self_intersections(sm);
+    const FacePairs pairs = self_intersecting_pairs(sm);
+    rep.self_intersections_after = pairs.size();
+    lap("  remesh check");
+    if (lap.on()) std::fprintf(stderr, "  surface   %zu self-intersecting pairs after remeshing\n", pairs.size());
+    if (!pairs.empty()) {
+      rep.self_intersections_after = remove_self_intersections_near(sm, pairs, rep.holes_filled).size();
+      lap("  remesh repairs");
     }
   } else {
     rep.self_intersections_after = count_self_intersections(sm);
+    lap("  check");
   }
-  lap("  remesh repairs, check");
   if (CGAL::is_closed(sm)) PMP::orient_to_bound_a_volume(sm);  // outward
   lap("  orient");
 
