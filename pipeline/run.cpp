@@ -23,6 +23,7 @@
 #include "asymmetry/measures.h"
 #include "asymmetry/saf.h"
 #include "core/error.h"
+#include "geometry/mesh_geometry.h"
 #include "io/volume_io.h"
 #include "landmarks/landmarks.h"
 #include "reports/render.h"
@@ -54,7 +55,8 @@ const cli::CommandSpec& run_spec() {
        {"mask", "FILE", "use this segmentation instead of the automatic one (label map in any ITK format)", ""},
        {"label", "N", "with --mask: the mandible's label (TotalSegmentator craniofacial_structures: 1)", "the only label"},
        {"target-faces", "N", "decimate the surface above this many triangles", "60000"},
-       {"edge-length", "MM", "isotropic remeshing edge length (0 = no CGAL repair/remeshing)", "1"},
+       {"edge-length", "MM", "isotropic remeshing edge length of the surface (0 = no CGAL repair/remeshing); the SAF score is "
+                          "computed on a 1 mm remeshing whatever this is", "1"},
        {"close-handles", "MM|auto", "closing radius before meshing, removes handles such as teeth in contact; auto = only "
                                     "when the surface has handles, the smallest of 1, 2, 3 mm that removes them (0 = never)", "auto"},
        {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
@@ -323,8 +325,24 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.mirror = asymmetry::mirror_distance(surf.mesh, S.reference.plane, regions, &S.landmarks.landmarks);
     const auto disks = asymmetry::saf_anchors(S.landmarks.landmarks, S.reference.reference, anchor_choice == "reference");
     sao.keep_fields = true;  // for the SRD descriptors, dropped right after
-    S.saf = asymmetry::compute_saf(surf.mesh, disks, S.reference.plane, sao);
-    S.srd = asymmetry::compute_srds(surf.mesh, S.saf);
+    // The SAF score is defined at 1 mm edges (asymmetry::kSafEdgeMm): a surface
+    // meshed at another --edge-length is scored on a 1 mm remeshing of itself
+    // and the map carried back to its vertices.
+    Mesh saf_mesh;
+    const bool remesh_for_saf = std::abs(mo.target_edge_mm - asymmetry::kSafEdgeMm) > 0.05 * asymmetry::kSafEdgeMm;
+    if (remesh_for_saf) {
+      saf_mesh = surf.mesh;
+      surface::RepairOptions rp;
+      rp.target_edge_mm = asymmetry::kSafEdgeMm;
+      surface::repair_and_remesh(saf_mesh, rp);
+    }
+    const Mesh& scored = remesh_for_saf ? saf_mesh : surf.mesh;
+    S.saf = asymmetry::compute_saf(scored, disks, S.reference.plane, sao);
+    S.srd = asymmetry::compute_srds(scored, S.saf);
+    if (remesh_for_saf && !S.saf.per_vertex.empty()) {
+      const geometry::ClosestPointIndex index(saf_mesh);
+      S.saf.per_vertex = geometry::values_at(saf_mesh, index, S.saf.per_vertex, surf.mesh.vertices);
+    }
     S.saf.fields.clear();
     S.saf.fields.shrink_to_fit();
     if (!S.saf.skipped.empty())

@@ -19,6 +19,12 @@ struct Configuration {
 const std::vector<Configuration>& default_configurations();
 Configuration mirrored(const Configuration& c);  // label mirror σ
 
+// The SAF score is defined on the surface remeshed isotropically at this edge
+// length (mm): on coarser triangulations the Dirichlet disks and per-face
+// gradients add a discretisation floor (docs/method.md, "Resolution"), so the
+// pipeline scores a 1 mm remeshing when the surface has another edge length.
+constexpr double kSafEdgeMm = 1.0;
+
 struct SafOptions {
   double disk_radius_mm = 2.0;
   double min_gradient_ratio = 1e-3;  // faces with |∇u| below this × median are masked

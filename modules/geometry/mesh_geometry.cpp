@@ -59,6 +59,18 @@ ClosestHit ClosestPointIndex::closest(const Vec3& q) const {
   return h;
 }
 
+std::vector<double> values_at(const Mesh& mesh, const ClosestPointIndex& index, const std::vector<double>& values,
+                              const std::vector<Vec3>& points) {
+  std::vector<double> out(points.size(), 0.0);
+  if (values.size() != mesh.vertices.size() || mesh.faces.empty()) return out;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const ClosestHit h = index.closest(points[i]);
+    const auto& f = mesh.faces[static_cast<std::size_t>(h.face)];
+    for (int k = 0; k < 3; ++k) out[i] += h.bary[k] * values[static_cast<std::size_t>(f[k])];
+  }
+  return out;
+}
+
 std::vector<Vec3> face_normals(const Mesh& m) {
   std::vector<Vec3> n(m.faces.size());
   for (std::size_t i = 0; i < m.faces.size(); ++i) {

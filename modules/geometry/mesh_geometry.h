@@ -31,6 +31,12 @@ class ClosestPointIndex {
   std::unique_ptr<Impl> impl_;
 };
 
+// Per-vertex values of `mesh` at arbitrary points: barycentric interpolation
+// at each point's closest point on the surface (e.g. a map carried from one
+// triangulation of a surface to another).
+std::vector<double> values_at(const Mesh& mesh, const ClosestPointIndex& index, const std::vector<double>& values,
+                              const std::vector<Vec3>& points);
+
 // Unit outward normals and areas of the faces of an outward-oriented mesh.
 std::vector<Vec3> face_normals(const Mesh& mesh);
 std::vector<double> face_areas(const Mesh& mesh);

@@ -434,6 +434,33 @@ TEST(HarmonicField, FaceGradientOfLinearFunctionIsItsTangentialPart) {
   EXPECT_LT(worst, 1e-8 * ms::norm(g));
 }
 
+// The carrier of the SAF map between triangulations: a function linear in
+// space is reproduced exactly at points on the surface (vertices of another
+// triangulation of it: the face centroids and edge midpoints here), and a
+// vertex's own value comes back at the vertex.
+TEST(MeshGeometry, ValuesAtInterpolatesBarycentricallyOnTheSurface) {
+  const auto& m = symmetric().mesh;
+  const Vec3 g{0.4, -0.9, 1.3};
+  std::vector<double> f(m.vertices.size());
+  for (std::size_t v = 0; v < f.size(); ++v) f[v] = ms::dot(g, m.vertices[v]) - 2.0;
+  std::vector<Vec3> pts;
+  for (std::size_t i = 0; i < m.faces.size(); i += 7) {
+    const auto& t = m.faces[i];
+    const Vec3 &a = m.vertices[t[0]], &b = m.vertices[t[1]], &c = m.vertices[t[2]];
+    pts.push_back((1.0 / 3.0) * (a + b + c));
+    pts.push_back(0.5 * (a + b));
+  }
+  for (std::size_t v = 0; v < m.vertices.size(); v += 11) pts.push_back(m.vertices[v]);
+  const ms::geometry::ClosestPointIndex index(m);
+  const auto got = ms::geometry::values_at(m, index, f, pts);
+  ASSERT_EQ(got.size(), pts.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) worst = std::max(worst, std::abs(got[i] - (ms::dot(g, pts[i]) - 2.0)));
+  EXPECT_LT(worst, 1e-6);
+  // Values of the wrong length give zeros, not a crash.
+  EXPECT_EQ(ms::geometry::values_at(m, index, std::vector<double>(3, 1.0), pts), std::vector<double>(pts.size(), 0.0));
+}
+
 TEST(HarmonicField, FaceGradientOnASingleTriangle) {
   // u = x on the triangle (0,0,0),(2,0,0),(0,3,0): ∇u = (1,0,0), for either winding.
   ms::Mesh t;
