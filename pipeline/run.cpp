@@ -281,29 +281,17 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     //    yaw and roll, the palatal plane (nasal floor) gives pitch.
     landmarks::Options lo;
     if (seg.truncated) lo.scan_grid = &seg.mask.geom;  // landmarks at the cut are missing, not guessed
-    lo.plane = landmarks::mandible_plane(surf.mesh);
-    {
-      landmarks::PalateOptions po;
-      po.plate_hu += seg.offset_hu;
-      po.air_hu += seg.offset_hu;
-      S.palate = landmarks::find_palatal_plane(scan.volume, surf.mesh, *lo.plane, po);
-    }
-    if (S.palate.found) {
-      lo.superior = S.palate.superior;
-      if (S.palate.floor != "air")
-        S.warnings.push_back("landmarks: the palatal plane was fitted to a nasal floor under soft tissue (no air in the nasal "
-                             "cavity): check it on qc_head_frame.png");
-    } else
-      S.warnings.push_back("landmarks: palatal plane not found (" + S.palate.reason +
-                           "): 'superior' is the scan's axis, so a pitched head moves Me, Pog and Cr");
-    S.landmarks = landmarks::detect(surf.mesh, lo);
+    landmarks::PalateOptions po;
+    po.plate_hu += seg.offset_hu;  // thresholds follow the scan's calibration offset
+    po.air_hu += seg.offset_hu;
+    S.landmarks = landmarks::detect_in_head_frame(scan.volume, surf.mesh, lo, po, &S.palate);
     for (const auto& w : S.landmarks.warnings) S.warnings.push_back(w);
     for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
     stage("landmarks", 4);
 
     // 5. symmetry plane + reference configuration
     reference::Options ro_fit;
-    ro_fit.superior = lo.superior;  // asymmetry vectors in the head's frame, like the landmarks
+    ro_fit.superior = S.head_superior();  // asymmetry vectors in the head's frame, like the landmarks
     S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh, ro_fit);
     for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
     if (!args.has("no-cranial")) {

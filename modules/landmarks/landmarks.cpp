@@ -371,4 +371,25 @@ Result detect(const Mesh& mesh, const Options& opt) {
   return r;
 }
 
+Result detect_in_head_frame(const Volume& ct, const Mesh& mesh, Options options, const PalateOptions& palate_options,
+                            PalatalPlane* palate) {
+  if (mesh.vertices.size() < 100 || mesh.faces.empty()) return detect(mesh, options);
+  options.plane = mandible_plane(mesh);
+  const PalatalPlane pp = find_palatal_plane(ct, mesh, *options.plane, palate_options);
+  std::vector<std::string> notes;
+  if (pp.found) {
+    options.superior = pp.superior;
+    if (pp.floor != "air")
+      notes.push_back("landmarks: the palatal plane was fitted to a nasal floor under soft tissue (no air in the nasal "
+                      "cavity): check it on qc_head_frame.png");
+  } else {
+    notes.push_back("landmarks: palatal plane not found (" + pp.reason +
+                    "): 'superior' is the scan's axis, so a pitched head moves Me, Pog and Cr");
+  }
+  Result r = detect(mesh, options);
+  r.warnings.insert(r.warnings.begin(), notes.begin(), notes.end());
+  if (palate) *palate = pp;
+  return r;
+}
+
 }  // namespace ms::landmarks

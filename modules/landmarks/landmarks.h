@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/types.h"
+#include "landmarks/palate.h"
 
 namespace ms::landmarks {
 
@@ -46,5 +47,12 @@ Result detect(const Mesh& mesh, const Options& options = {});
 // from the scan's sagittal plane through the centroid (head pose within
 // about 20 degrees). detect() fits it unless Options::plane is given.
 Plane mandible_plane(const Mesh& mesh);
+
+// What `mandisym run` does: the mandible's plane, the palatal plane from the
+// CT (palate.h), then detect() with its normal as superior — or the scan's
+// superior when no palate is found, with a warning saying so. options.plane
+// and options.superior are set here; `palate` (optional) receives the fit.
+Result detect_in_head_frame(const Volume& ct, const Mesh& mesh, Options options = {}, const PalateOptions& palate_options = {},
+                            PalatalPlane* palate = nullptr);
 
 }  // namespace ms::landmarks

@@ -54,16 +54,13 @@ TEST_P(LandmarkMatrix, LabelsEveryLandmarkOnTheRightSideNearTheTruth) {
   const auto surf = ms::surface::mesh_from_mask(ph.mandible);
   // The head frame as the pipeline builds it: the mandible's symmetry plane
   // and the palatal plane from the CT.
-  ms::landmarks::Options lo;
-  lo.plane = ms::landmarks::mandible_plane(surf.mesh);
-  const auto palate = ms::landmarks::find_palatal_plane(ph.ct, surf.mesh, *lo.plane);
+  ms::landmarks::PalatalPlane palate;
+  const auto r = ms::landmarks::detect_in_head_frame(ph.ct, surf.mesh, {}, {}, &palate);
   ASSERT_TRUE(palate.found) << palate.reason;
   const double frame_err = std::acos(std::min(1.0, ms::dot(palate.superior, ph.superior))) * 180 / M_PI;
   std::printf("%s: palate tilt %.2f deg (head pitch %.0f), superior %.2f deg from the head's, %zu samples over %.0f mm, rms %.2f mm\n",
               c.name, palate.tilt_deg, c.pitch, frame_err, palate.samples, palate.length_mm, palate.rms_mm);
   EXPECT_LT(frame_err, 1.0);
-  lo.superior = palate.superior;
-  const auto r = ms::landmarks::detect(surf.mesh, lo);
   EXPECT_TRUE(r.missing.empty()) << r.missing.size() << " missing";
   std::string line;
   for (const auto& name : ms::landmark_names()) {
