@@ -11,8 +11,8 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// A nasal-floor candidate: the top of a bone run with air above it, on one
-// para-sagittal profile, at antero-posterior position a and height h (mm in
+// A nasal-floor candidate: the top of a bone run with air (or soft tissue)
+// above it, on one para-sagittal profile, at antero-posterior position a and height h (mm in
 // the mandible's plane frame).
 struct Candidate {
   double a, h;
@@ -147,7 +147,7 @@ PalatalPlane find_palatal_plane(const Volume& ct, const Mesh& mandible, const Pl
 
   // Para-sagittal profiles: 4-8 mm either side of the plane (lateral to the
   // nasal septum, inside the nasal cavity), every 1 mm antero-posteriorly.
-  double min_spacing = std::min({ct.geom.spacing[0], ct.geom.spacing[1], ct.geom.spacing[2]});
+  const double min_spacing = std::min({ct.geom.spacing[0], ct.geom.spacing[1], ct.geom.spacing[2]});
   const double step = std::max(0.2, 0.5 * min_spacing);
   // (profiles run 60 mm above the highest place a floor is looked for: the
   // air above a nasal floor must end there, the cavity is closed above)

@@ -12,9 +12,12 @@
 // Found from the CT alone, beside the mandible (docs/landmarks.md):
 // para-sagittal intensity profiles 4-8 mm either side of the mandible's
 // symmetry plane, from above the incisors to above the rami; on each, every
-// top of a bone run with air above it is a nasal-floor candidate; the line
-// (in the sagittal plane) through the most candidates within +-1.5 mm is
-// found by an exhaustive slope/offset search, then refined by least squares.
+// top of a bone run with air above it (a closed cavity) is a nasal-floor
+// candidate; the line (in the sagittal plane) through the most candidates
+// within +-1.5 mm is found by an exhaustive slope/offset search, then refined
+// by least squares. Only when that finds no palate (a nasal cavity filled
+// with mucosa), bone tops under soft tissue are used as well (floor =
+// "soft tissue").
 #pragma once
 
 #include <cstddef>
