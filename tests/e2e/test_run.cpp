@@ -43,6 +43,12 @@ int run(const std::string& args, std::string* err = nullptr) {
   return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
+// The real headsq scan from ../shared/data ("" when absent: the test skips).
+fs::path headsq_nhdr() {
+  const fs::path p = fs::path(MANDISYM_SHARED_DATA) / "headsq" / "quarter.nhdr";
+  return fs::exists(p) ? p : fs::path();
+}
+
 Value load(const fs::path& p) {
   std::ifstream f(p);
   std::stringstream s;
@@ -305,8 +311,8 @@ TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
 }
 
 TEST(EndToEnd, HeadsqNrrdFromTheIssueCompletes) {
-  const fs::path nhdr = fs::path(MANDISYM_SHARED_DATA) / "headsq" / "quarter.nhdr";
-  if (!fs::exists(nhdr)) GTEST_SKIP() << "shared data not present";
+  const fs::path nhdr = headsq_nhdr();
+  if (nhdr.empty()) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("headsq");
   std::string err;
   ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 -o " + out.string() + " -q", &err), 0) << err;
@@ -359,8 +365,8 @@ TEST(EndToEnd, PitchedHeadIsCorrectedByThePalatalPlane) {
 // is found on air; the head lies flexed in the scanner (measured 12.9 deg),
 // and the corrected frame finds both gonia.
 TEST(EndToEnd, HeadsqPalatalPlaneIsFoundOnTheNasalFloor) {
-  const fs::path nhdr = fs::path(MANDISYM_SHARED_DATA) / "headsq" / "quarter.nhdr";
-  if (!fs::exists(nhdr)) GTEST_SKIP() << "shared data not present";
+  const fs::path nhdr = headsq_nhdr();
+  if (nhdr.empty()) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("headsq_lpi");
   std::string err;
   ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 --orientation LPI -o " + out.string() + " -q --no-figures", &err), 0) << err;

@@ -47,8 +47,8 @@ TEST_P(PalatalPlane, GivesTheHeadsSuperiorWithinOneDegree) {
   std::printf("%s: tilt %.2f deg, superior %.2f deg from the head's, %zu samples over %.0f mm, rms %.2f mm\n", s.name, r.tilt_deg, err,
               r.samples, r.length_mm, r.rms_mm);
   EXPECT_LT(err, 1.0);
-  EXPECT_NEAR(ms::norm(r.superior), 1.0, 1e-9);
-  // The line's ends lie on the nasal floor: above the teeth, below the condyles.
+  // The support spans most of the floor (the phantom's nasal cavity is 52 mm
+  // long), not a short stretch that happens to agree.
   EXPECT_GT(r.length_mm, 30.0);
 }
 
