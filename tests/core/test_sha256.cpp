@@ -82,3 +82,44 @@ TEST(Sha256, DigestIsStableAndUpdateAfterFinaliseThrows) {
 }
 
 }  // namespace
+
+// The SHA-extension and portable compressions must give the same digests on
+// every length around the block and padding boundaries, one-shot and chunked.
+TEST(Sha256, CpuExtensionsAgreeWithPortableCode) {
+  if (!ms::sha256_uses_cpu_extensions()) GTEST_SKIP() << "this CPU has no SHA extensions";
+  std::mt19937 rng(777);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::vector<size_t> lengths;
+  for (size_t len = 0; len <= 300; ++len) lengths.push_back(len);
+  for (size_t len : {1000u, 4096u, 65537u, 1000003u}) lengths.push_back(len);
+  for (size_t len : lengths) {
+    std::vector<unsigned char> data(len);
+    for (auto& b : data) b = static_cast<unsigned char>(byte(rng));
+    const std::string fast = ms::sha256_hex(data.data(), data.size());
+    ms::sha256_allow_cpu_extensions(false);
+    ASSERT_FALSE(ms::sha256_uses_cpu_extensions());
+    const std::string portable = ms::sha256_hex(data.data(), data.size());
+    ms::sha256_allow_cpu_extensions(true);
+    ASSERT_EQ(fast, portable) << "len=" << len;
+    // Chunked through the buffered path with the extensions.
+    ms::Sha256 h;
+    for (size_t pos = 0; pos < len;) {
+      const size_t n = std::min<size_t>(1 + (pos * 31) % 150, len - pos);
+      h.update(data.data() + pos, n);
+      pos += n;
+    }
+    EXPECT_EQ(h.hex_digest(), portable) << "len=" << len;
+  }
+  // The FIPS vectors on the extensions too (the tests above run on whichever path the CPU has).
+  EXPECT_EQ(ms::sha256_hex("abc", 3), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+}
+
+TEST(Sha256, PortableCodeMatchesFipsVectors) {
+  ms::sha256_allow_cpu_extensions(false);
+  const std::string msg = "abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq";
+  EXPECT_EQ(ms::sha256_hex(msg.data(), msg.size()), "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  const std::string million(1000000, 'a');
+  EXPECT_EQ(ms::sha256_hex(million.data(), million.size()),
+            "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+  ms::sha256_allow_cpu_extensions(true);
+}

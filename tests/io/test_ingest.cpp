@@ -247,6 +247,24 @@ TEST(Ingest, BitsAboveBitsStoredAreIgnoredAndSignedPixelsWork) {
   ms::testing::write_series(dir2.string(), sg, 9, -300.0, 1.0, field);  // negative HU stored as negatives
   expect_field(io::read_scan(dir2.string()).volume, 0.51);
   fs::remove_all(dir2);
+  // Signed 12 bits in 16 with overlay bits above: the sign comes from bit 11.
+  const fs::path dir3 = temp_dir("signed12");
+  SliceSpec s12 = sg;
+  s12.bits_stored = 12;
+  auto specs12 = ms::testing::write_series(dir3.string(), s12, 9, -300.0, 1.0, field, "s");
+  bool negative = false;
+  for (std::size_t k = 0; k < specs12.size(); ++k) {
+    for (auto& v : specs12[k].stored) {
+      negative = negative || v < 0;
+      v = (v & 0x0FFF) | 0xA000;
+    }
+    char n[32];
+    std::snprintf(n, sizeof n, "s_%03zu.dcm", k);
+    ms::testing::write_slice((dir3 / n).string(), specs12[k]);
+  }
+  ASSERT_TRUE(negative);
+  expect_field(io::read_scan(dir3.string()).volume, 0.51);
+  fs::remove_all(dir3);
 }
 
 TEST(Ingest, MixedStudyChoosesTheFinestCtCoveringTheHead) {
