@@ -6,30 +6,50 @@
 namespace ms {
 namespace {
 
+// Longest window (voxels each way) of the windowed minimum below.
+constexpr long kWindowMax = 12;
+
+// Per-thread scratch of edt_line: the lower envelope's parabolas (apex
+// position, value at the apex, apex value + position^2) and their cuts.
+struct Envelope {
+  std::vector<float> x, f, g, z;
+  void reserve(std::size_t n) {
+    x.resize(n);
+    f.resize(n);
+    g.resize(n);
+    z.resize(n + 1);
+  }
+};
+
 // One line of the squared EDT (lower envelope of parabolas, Felzenszwalb &
-// Huttenlocher): d[i] = min_q ((i - q) s)^2 + f[q].
-void edt_line(const float* f, float* d, int n, float s, std::vector<int>& v, std::vector<float>& z) {
-  v.resize(static_cast<std::size_t>(n));
-  z.resize(static_cast<std::size_t>(n) + 1);
+// Huttenlocher): d[i] = min_q ((i - q) s)^2 + f[q] over the q with
+// f[q] <= max_sq (the others cannot bring any d[i] to max_sq or below).
+void edt_line(const float* f, float* d, int n, float s, float max_sq, Envelope& e) {
+  e.reserve(static_cast<std::size_t>(n));
+  float* vx = e.x.data();
+  float* vf = e.f.data();
+  float* vg = e.g.data();
+  float* z = e.z.data();
   int k = -1;
   for (int q = 0; q < n; ++q) {
-    if (!(f[q] < kNoFeature)) continue;
+    const float fq = f[q];
+    if (!(fq < kNoFeature && fq <= max_sq)) continue;
     const float xq = static_cast<float>(q) * s;
+    const float gq = fq + xq * xq;
     while (k >= 0) {
-      const float xv = static_cast<float>(v[static_cast<std::size_t>(k)]) * s;
-      const float cut = ((f[q] + xq * xq) - (f[v[static_cast<std::size_t>(k)]] + xv * xv)) / (2 * (xq - xv));
-      if (cut > z[static_cast<std::size_t>(k)]) {
+      const float cut = (gq - vg[k]) / (2 * (xq - vx[k]));
+      if (cut > z[k]) {
         ++k;
-        v[static_cast<std::size_t>(k)] = q;
-        z[static_cast<std::size_t>(k)] = cut;
-        z[static_cast<std::size_t>(k) + 1] = kNoFeature;
+        vx[k] = xq, vf[k] = fq, vg[k] = gq;
+        z[k] = cut;
+        z[k + 1] = kNoFeature;
         break;
       }
       --k;
     }
     if (k < 0) {
       k = 0;
-      v[0] = q;
+      vx[0] = xq, vf[0] = fq, vg[0] = gq;
       z[0] = -kNoFeature;
       z[1] = kNoFeature;
     }
@@ -41,9 +61,27 @@ void edt_line(const float* f, float* d, int n, float s, std::vector<int>& v, std
   int j = 0;
   for (int q = 0; q < n; ++q) {
     const float x = static_cast<float>(q) * s;
-    while (z[static_cast<std::size_t>(j) + 1] < x) ++j;
-    const float dx = x - static_cast<float>(v[static_cast<std::size_t>(j)]) * s;
-    d[q] = dx * dx + f[v[static_cast<std::size_t>(j)]];
+    while (z[j + 1] < x) ++j;
+    const float dx = x - vx[j];
+    d[q] = dx * dx + vf[j];
+  }
+}
+
+// The first axis of a 0/1 feature grid: squared distance along the line to
+// the nearest feature (kNoFeature without one), by one sweep each way.
+void binary_line(const std::uint8_t* f, float* d, long n, float s) {
+  long last = -1;
+  for (long i = 0; i < n; ++i) {
+    if (f[i]) last = i;
+    const float dx = static_cast<float>(i) * s - static_cast<float>(last) * s;
+    d[i] = last < 0 ? kNoFeature : dx * dx;
+  }
+  long next = -1;
+  for (long i = n - 1; i >= 0; --i) {
+    if (f[i]) next = i;
+    if (next < 0) continue;
+    const float dx = static_cast<float>(next) * s - static_cast<float>(i) * s;
+    d[i] = std::min(d[i], dx * dx);
   }
 }
 
@@ -56,25 +94,15 @@ std::array<double, 3> ball_spacing(const std::array<int, 3>& radius) {
 }  // namespace
 
 std::vector<float> squared_distance_transform(const std::uint8_t* feature, const Dims3& dims,
-                                              const std::array<double, 3>& spacing) {
+                                              const std::array<double, 3>& spacing, float max_sq) {
   const std::size_t n = dims[0] * dims[1] * dims[2];
   std::vector<float> d(n);
-  for (std::size_t i = 0; i < n; ++i) d[i] = feature[i] ? 0.0f : kNoFeature;
   const long nx = static_cast<long>(dims[0]), ny = static_cast<long>(dims[1]), nz = static_cast<long>(dims[2]);
-  // Along x: lines are contiguous.
+  // Along x: lines are contiguous, and the features 0/1.
   {
     const float s = static_cast<float>(spacing[0]);
-#pragma omp parallel
-    {
-      std::vector<float> out(dims[0]), z;
-      std::vector<int> v;
-#pragma omp for schedule(static)
-      for (long l = 0; l < ny * nz; ++l) {
-        float* p = d.data() + l * nx;
-        edt_line(p, out.data(), static_cast<int>(nx), s, v, z);
-        std::copy(out.begin(), out.end(), p);
-      }
-    }
+#pragma omp parallel for schedule(static)
+    for (long l = 0; l < ny * nz; ++l) binary_line(feature + l * nx, d.data() + l * nx, nx, s);
   }
   // Along y and z: kBlock neighbouring x-lines at a time, so that every
   // gathered cache line is used whole.
@@ -84,20 +112,45 @@ std::vector<float> squared_distance_transform(const std::uint8_t* feature, const
     const long stride = a == 1 ? nx : nx * ny, other_stride = a == 1 ? nx * ny : nx;
     const long xblocks = (nx + kBlock - 1) / kBlock;
     const float s = static_cast<float>(spacing[a]);
+    // A truncated transform (morphology of a small ball) needs only the
+    // features within `reach` voxels along this axis: a windowed minimum of
+    // the same terms, the kBlock lines side by side (it vectorises), instead
+    // of the envelope (one division per feature). One voxel more than the
+    // radius: a longer window costs time, never exactness.
+    const long reach = max_sq < kNoFeature ? static_cast<long>(std::sqrt(max_sq) / s) + 1 : kWindowMax + 1;
+    const bool windowed = reach <= kWindowMax;
 #pragma omp parallel
     {
-      std::vector<float> tile(static_cast<std::size_t>(len * kBlock)), out(static_cast<std::size_t>(len)), z;
-      std::vector<int> v;
+      std::vector<float> tile(static_cast<std::size_t>(len * kBlock)), out(static_cast<std::size_t>(windowed ? len * kBlock : len));
+      Envelope env;
 #pragma omp for schedule(static)
       for (long t = 0; t < xblocks * other; ++t) {
         const long x0 = (t % xblocks) * kBlock, w = std::min(kBlock, nx - x0);
         float* base = d.data() + x0 + (t / xblocks) * other_stride;
+        if (windowed) {
+          if (w < kBlock) std::fill(tile.begin(), tile.end(), kNoFeature);
+          for (long i = 0; i < len; ++i) std::copy_n(base + i * stride, w, tile.data() + i * kBlock);  // row i = position i
+          for (long i = 0; i < len; ++i) {
+            float* o = out.data() + i * kBlock;
+            std::copy_n(tile.data() + i * kBlock, kBlock, o);
+            const float x = static_cast<float>(i) * s;
+            for (long q = std::max(0L, i - reach); q <= std::min(len - 1, i + reach); ++q) {
+              if (q == i) continue;
+              const float dx = x - static_cast<float>(q) * s;
+              const float w2 = dx * dx;
+              const float* r = tile.data() + q * kBlock;
+              for (long c = 0; c < kBlock; ++c) o[c] = std::min(o[c], r[c] + w2);
+            }
+          }
+          for (long i = 0; i < len; ++i) std::copy_n(out.data() + i * kBlock, w, base + i * stride);
+          continue;
+        }
         for (long i = 0; i < len; ++i)  // transpose in: column c of the tile is line x0 + c
           for (long c = 0; c < w; ++c) tile[static_cast<std::size_t>(c * len + i)] = base[i * stride + c];
         for (long c = 0; c < w; ++c) {
           float* col = tile.data() + c * len;
-          edt_line(col, out.data(), static_cast<int>(len), s, v, z);
-          std::copy(out.begin(), out.end(), col);
+          edt_line(col, out.data(), static_cast<int>(len), s, max_sq, env);
+          std::copy(out.begin(), out.begin() + len, col);
         }
         for (long i = 0; i < len; ++i)
           for (long c = 0; c < w; ++c) base[i * stride + c] = tile[static_cast<std::size_t>(c * len + i)];
@@ -136,7 +189,7 @@ std::vector<float> depth_inside(const std::uint8_t* mask, const Dims3& dims, con
 }
 
 void dilate_ball(std::vector<std::uint8_t>& mask, const Dims3& dims, const std::array<int, 3>& radius) {
-  const std::vector<float> d = squared_distance_transform(mask.data(), dims, ball_spacing(radius));
+  const std::vector<float> d = squared_distance_transform(mask.data(), dims, ball_spacing(radius), 1.0f);
   const std::size_t n = mask.size();
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < static_cast<long>(n); ++i) mask[static_cast<std::size_t>(i)] = d[static_cast<std::size_t>(i)] <= 1.0f;
@@ -145,8 +198,9 @@ void dilate_ball(std::vector<std::uint8_t>& mask, const Dims3& dims, const std::
 void erode_ball(std::vector<std::uint8_t>& mask, const Dims3& dims, const std::array<int, 3>& radius) {
   const std::size_t n = mask.size();
   std::vector<std::uint8_t> background(n);
-  for (std::size_t i = 0; i < n; ++i) background[i] = !mask[i];
-  const std::vector<float> d = squared_distance_transform(background.data(), dims, ball_spacing(radius));
+#pragma omp parallel for schedule(static)
+  for (long i = 0; i < static_cast<long>(n); ++i) background[static_cast<std::size_t>(i)] = !mask[static_cast<std::size_t>(i)];
+  const std::vector<float> d = squared_distance_transform(background.data(), dims, ball_spacing(radius), 1.0f);
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < static_cast<long>(n); ++i) mask[static_cast<std::size_t>(i)] = d[static_cast<std::size_t>(i)] > 1.0f;
 }
@@ -176,12 +230,14 @@ void close_ball(std::vector<std::uint8_t>& mask, const Dims3& dims, const std::a
 }
 
 void close_euclidean(std::vector<std::uint8_t>& mask, const Dims3& dims, const std::array<double, 3>& spacing, double r) {
-  const std::size_t n = mask.size();
+  const long n = static_cast<long>(mask.size());
   const float r2 = static_cast<float>(r * r);
-  const std::vector<float> to_mask = squared_distance_transform(mask.data(), dims, spacing);
-  for (std::size_t i = 0; i < n; ++i) mask[i] = !(to_mask[i] <= r2);  // outside the dilation
-  const std::vector<float> to_outside = squared_distance_transform(mask.data(), dims, spacing);
-  for (std::size_t i = 0; i < n; ++i) mask[i] = to_outside[i] > r2;
+  const std::vector<float> to_mask = squared_distance_transform(mask.data(), dims, spacing, r2);
+#pragma omp parallel for schedule(static)
+  for (long i = 0; i < n; ++i) mask[static_cast<std::size_t>(i)] = !(to_mask[static_cast<std::size_t>(i)] <= r2);  // outside the dilation
+  const std::vector<float> to_outside = squared_distance_transform(mask.data(), dims, spacing, r2);
+#pragma omp parallel for schedule(static)
+  for (long i = 0; i < n; ++i) mask[static_cast<std::size_t>(i)] = to_outside[static_cast<std::size_t>(i)] > r2;
 }
 
 }  // namespace ms

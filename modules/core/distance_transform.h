@@ -22,8 +22,11 @@ constexpr float kNoFeature = 1e20f;
 
 // Squared distance (in the units of spacing, squared) from every voxel to the
 // nearest voxel where feature[i] != 0; kNoFeature when there is none.
+// Distances up to max_sq are exact; larger ones come out larger than max_sq
+// but not exact (a threshold at max_sq or below needs no more, and features
+// that far are skipped: a morphology of radius r is much cheaper with r^2).
 std::vector<float> squared_distance_transform(const std::uint8_t* feature, const Dims3& dims,
-                                              const std::array<double, 3>& spacing);
+                                              const std::array<double, 3>& spacing, float max_sq = kNoFeature);
 
 // Depth inside an object as ITK's signed Maurer distance map measures it:
 // the distance (units of spacing) from each object voxel to the nearest voxel

@@ -715,10 +715,15 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     const Box mbox = bounding_box(rm.data(), cdims, 2);
     std::vector<std::uint8_t> core_m(cg.voxel_count());
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) core_m[i] = in_mandible(m[i]);
-    std::vector<float> nd2(cg.voxel_count(), kNoFeature);  // mm^2 to the core
-    insert(squared_distance_transform(extract(core_m.data(), cdims, mbox).data(), mbox.size, cg.spacing), mbox, nd2.data(), cdims);
-    lap("band distance");
     const float band = static_cast<float>(r_used + 2.0 * std::max(max_spacing, native_max_spacing));  // two voxels of the coarser of the grid and the scan
+    // Scans coarser than the working grid never resolved thin shells, and
+    // their band is already two scan voxels wide: band only. The thick parts
+    // below reach at most Options::thick_reach_mm from the core (a crown's height).
+    const float reach = static_cast<float>(std::max<double>(band, opt.thick_reach_mm));
+    const float band2 = band * band, reach2 = reach * reach;
+    std::vector<float> nd2(cg.voxel_count(), kNoFeature);  // mm^2 to the core, exact up to reach^2
+    insert(squared_distance_transform(extract(core_m.data(), cdims, mbox).data(), mbox.size, cg.spacing, reach2), mbox, nd2.data(), cdims);
+    lap("band distance");
     // Beyond the band, keep what is thick: the region opened by a one-voxel
     // ball. Streaks are rays and sheets one or two voxels thin and vanish; a
     // tooth crown whose thin shell left no core within the band stays.
@@ -734,11 +739,6 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     // region reaches it through the background and must stay out.
     auto cand = io::make_image<MaskImage>(cg);
     auto* cm = cand->GetBufferPointer();
-    // Scans coarser than the working grid never resolved thin shells, and
-    // their band is already two scan voxels wide: band only. The thick parts
-    // reach at most Options::thick_reach_mm from the core (a crown's height).
-    const float reach = static_cast<float>(std::max<double>(band, opt.thick_reach_mm));
-    const float band2 = band * band, reach2 = reach * reach;
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) cm[i] = rm[i] && (nd2[i] <= band2 || (fine_scan && thick[i] && nd2[i] <= reach2));
     auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
     cc->SetInput(cand);

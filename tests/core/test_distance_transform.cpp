@@ -63,6 +63,57 @@ TEST(DistanceTransform, SquaredDistanceIsExact) {
   EXPECT_EQ(ms::squared_distance_transform(none.data(), kDims, kSpacing)[7], ms::kNoFeature);
 }
 
+// With max_sq, distances up to it are exact and the others exceed it: both
+// the windowed minimum (a small max_sq) and the truncated envelope (a large
+// one) against brute force, and close_euclidean built on them.
+TEST(DistanceTransform, TruncatedDistanceIsExactUpToItsBound) {
+  const auto m = blobs(kDims, 3, 0.53f);
+  std::vector<double> exact(m.size());
+  each(kDims, [&](long i, long j, long k, std::size_t c) {
+    double best = ms::kNoFeature;
+    each(kDims, [&](long x, long y, long z, std::size_t q) {
+      if (!m[q]) return;
+      const double dx = (x - i) * kSpacing[0], dy = (y - j) * kSpacing[1], dz = (z - k) * kSpacing[2];
+      best = std::min(best, dx * dx + dy * dy + dz * dz);
+    });
+    exact[c] = best;
+  });
+  for (float max_sq : {0.2f, 1.0f, 2.9f, 9.0f, 60.0f}) {  // 60: reach beyond the window on every axis
+    const auto d2 = ms::squared_distance_transform(m.data(), kDims, kSpacing, max_sq);
+    std::size_t within = 0, beyond = 0;
+    each(kDims, [&](long i, long j, long k, std::size_t c) {
+      if (exact[c] <= max_sq) {
+        ++within;
+        ASSERT_NEAR(d2[c], exact[c], 1e-4 * (1 + exact[c])) << max_sq << ": " << i << " " << j << " " << k;
+      } else {
+        ++beyond;
+        ASSERT_GT(d2[c], max_sq * (1 - 1e-5)) << max_sq << ": " << i << " " << j << " " << k;
+      }
+    });
+    EXPECT_GT(within, 0u);
+    if (max_sq < 2) EXPECT_GT(beyond, 0u) << max_sq;  // the blobs leave no voxel farther than ~1.7 mm
+  }
+  // The closing by a Euclidean ball = brute-force dilation then erosion.
+  for (double r : {0.7, 1.3}) {
+    auto c = m;
+    ms::close_euclidean(c, kDims, kSpacing, r);
+    std::vector<std::uint8_t> dil(m.size());
+    for (std::size_t i = 0; i < m.size(); ++i) dil[i] = exact[i] <= r * r;
+    std::vector<std::uint8_t> want(m.size());
+    each(kDims, [&](long i, long j, long k, std::size_t q0) {
+      bool keep = true;  // no voxel outside the dilation within r
+      each(kDims, [&](long x, long y, long z, std::size_t q) {
+        if (!keep || dil[q]) return;
+        const double dx = (x - i) * kSpacing[0], dy = (y - j) * kSpacing[1], dz = (z - k) * kSpacing[2];
+        if (dx * dx + dy * dy + dz * dz <= r * r) keep = false;
+      });
+      want[q0] = keep;
+    });
+    EXPECT_EQ(c, want) << r;
+    EXPECT_NE(c, m) << r;
+  }
+}
+
 TEST(DistanceTransform, DepthInsideIsTheDistanceToTheContour) {
   // Blobs and an ellipsoid cut by the top face.
   auto m = blobs(kDims, 3, 0.5f);
