@@ -258,7 +258,14 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       return figures_on ? reports::write_qc_slices(scan.volume, seg.mask, staging.path("qc")) : std::vector<std::string>{};
     });
 
-    // 3. surface
+    // 3. surface, between voxels where the CT crosses the level the
+    //    segmentation placed the mask's boundary at (not for external masks:
+    //    their boundary is theirs)
+    if (seg.surface_level_hu != 0 && seg.mask.geom.same_grid(scan.volume.geom, 1e-6)) {
+      mo.guide = &scan.volume;
+      mo.guide_level_hu = seg.surface_level_hu;
+      mo.guide_soft_hu = 40.0 + seg.offset_hu;  // the offset is the soft-tissue peak's distance from 40 HU
+    }
     surf = surface::mesh_from_mask(seg.mask, mo);
     S.mesh = surf.stats;
     S.surface = surf.mesh;
@@ -353,6 +360,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.parameters["hu_offset"] = num(ro.hu_offset);
   S.parameters["bone_threshold_hu"] = num(so.bone_threshold_hu);
   S.parameters["surface_smoothing_sigma_mm"] = num(mo.smoothing_sigma_mm);
+  S.parameters["surface_guide_level_hu"] = mo.guide ? num(mo.guide_level_hu) : "none";
   S.parameters["surface_target_faces"] = std::to_string(mo.target_faces);
   S.parameters["surface_max_contour_spacing_mm"] = num(mo.max_contour_spacing_mm);
   S.parameters["saf_disk_radius_mm"] = num(sao.disk_radius_mm);

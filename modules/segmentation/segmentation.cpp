@@ -809,6 +809,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   // cancellous core below that level is restored by the hole filling.
   if (native_max_spacing <= 1.25) {
     const double surface_hu = offset + opt.surface_threshold_hu, bone_hu = offset + opt.bone_threshold_hu;
+    r.surface_level_hu = surface_hu;
     // Keep voxels above the surface level, plus voxels enclosed by them and
     // by the neighbouring bones: where the separation cut the mandible from
     // another bone (a condyle from its fossa across a bridged joint space),

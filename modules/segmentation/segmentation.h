@@ -55,6 +55,11 @@ struct Result {
   bool truncated = false;  // the mask touches the edge of the scan
   bool cropped = false;    // full-resolution work ran on a crop around the located mandible
   double threshold_hu = 0;          // bone threshold used (after calibration offset)
+  // HU level at which the mask's outer boundary was placed (after the
+  // offset), on scans that resolve the cortex (voxels up to 1.25 mm: the
+  // half-maximum between soft tissue and cortex); 0 otherwise and for
+  // external masks. The surface follows it between voxels (docs/surface.md).
+  double surface_level_hu = 0;
   double offset_hu = 0;             // estimated calibration offset (soft-tissue peak - 40 HU)
   double separation_radius_mm = 0;  // core depth used to separate the mandible (0: failed)
   std::string marker_source;        // "dense bone", "bone", or empty when separation failed

@@ -222,6 +222,43 @@ static std::pair<std::array<long, 3>, std::array<long, 3>> mask_box(const Mask& 
   return {lo, hi};
 }
 
+// Takes the 0/1 crop of a mask (dims, starting pad voxels before index lo of
+// the mask's grid) and a CT on that grid; where the CT agrees with the mask
+// (a mask voxel at or above level_hu, a non-mask voxel below it) the voxel's
+// value becomes 0.5 + (HU - level) / (2 (level - soft)), held on its own side
+// of 0.5 and within [0, 1], so that the 0.5 contour between a mask voxel and
+// its neighbour lies where the CT crosses the level (partial volume:
+// sub-voxel placement). Soft tissue maps to 0 and bone as far above the level
+// to 1: the values on either side are as far from 0.5 as the mask's 0 and 1,
+// so the Gaussian pre-smoothing does not push the contour outwards (with a
+// wider span, cortex at 0.9 against soft tissue at 0.17 did: +1.8 % volume on
+// the phantom mandible). Where
+// they disagree (a cut between touching bones, a filled cavity, a closed gap)
+// the voxel keeps its 0/1 value and the contour stays near half-way. The
+// contour keeps the mask's topology (every value stays on its side of 0.5).
+static void guide_by_ct(float* buf, const int dims[3], const std::array<long, 3>& lo, long pad, const Volume& ct,
+                        const Geometry& g, double level_hu, double soft_hu) {
+  constexpr float kGuideMargin = 0.02f;
+  const float span = static_cast<float>(2.0 * std::max(level_hu - soft_hu, 100.0));
+  if (!ct.geom.same_grid(g, 1e-6)) throw Error(ExitCode::Internal, "surface: the guiding CT is not on the mask's grid");
+  const float level = static_cast<float>(level_hu);
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < dims[2]; ++k)
+    for (int j = 0; j < dims[1]; ++j)
+      for (int i = 0; i < dims[0]; ++i) {
+        const long x = i + lo[0] - pad, y = j + lo[1] - pad, z = k + lo[2] - pad;
+        if (x < 0 || y < 0 || z < 0 || x >= static_cast<long>(g.size[0]) || y >= static_cast<long>(g.size[1]) ||
+            z >= static_cast<long>(g.size[2]))
+          continue;  // outside the scan: stays 0
+        float& v = buf[i + static_cast<std::size_t>(dims[0]) * (j + static_cast<std::size_t>(dims[1]) * k)];
+        const float hu = ct.hu[g.linear(x, y, z)];
+        const bool inside = v > 0.5f;
+        if (inside != (hu >= level)) continue;  // disagreement: 0/1 as the mask says
+        const float f = 0.5f + (hu - level) / span;
+        v = inside ? std::clamp(f, 0.5f + kGuideMargin, 1.0f) : std::clamp(f, 0.0f, 0.5f - kGuideMargin);
+      }
+}
+
 static Contour contour(const Mask& mask, const Options& opt) {
   SurfaceLap lap;
   const Geometry& g = mask.geom;
@@ -252,6 +289,7 @@ static Contour contour(const Mask& mask, const Options& opt) {
   lap("crop");
   if (opt.close_handles_mm > 0) close_binary(buf, dims, g.spacing.data(), opt.close_handles_mm);
   lap("closing");
+  if (opt.guide) guide_by_ct(buf, dims, lo, pad, *opt.guide, mask.geom, opt.guide_level_hu, opt.guide_soft_hu);
   // Fine masks: bin-average, then smooth by what the bins did not.
   std::array<double, 3> sigma_vox{};
   for (int a = 0; a < 3; ++a) {

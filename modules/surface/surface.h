@@ -28,6 +28,14 @@ struct Options {
   // skipped) and keep the first genus-0 result; none reaching genus 0 keeps
   // the unclosed surface (docs/surface.md).
   bool close_handles_auto = false;
+  // Sub-voxel placement: with a CT on the mask's grid, the contour follows
+  // the CT's iso-level guide_level_hu where it crosses between a mask voxel
+  // and a non-mask neighbour (partial volume), instead of the midpoint; the
+  // surface's topology stays the mask's (docs/surface.md, "Sub-voxel
+  // placement"). Null: the binary mask alone.
+  const Volume* guide = nullptr;
+  double guide_level_hu = 700.0;
+  double guide_soft_hu = 40.0;  // soft tissue: the guide's span is level +- (level - soft)
   std::size_t target_faces = 60000; // decimate above this many triangles (0 = never)
   double target_edge_mm = 1.0;      // isotropic remeshing edge length (0 = no CGAL repair/remeshing)
   int remesh_iterations = 3;

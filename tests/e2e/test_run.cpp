@@ -331,6 +331,33 @@ TEST(EndToEnd, HeadsqNrrdFromTheIssueCompletes) {
   for (std::size_t i = 0; i < r.at("warnings").size(); ++i)
     warned |= r.at("warnings")[i].as_string().find("not anatomical") != std::string::npos;
   EXPECT_TRUE(warned);
+  // 3.2 mm voxels do not resolve the cortex: the surface follows the mask alone.
+  EXPECT_EQ(r.at("parameters").at("surface_guide_level_hu").as_string(), "none");
+  fs::remove_all(out);
+}
+
+// With its own segmentation of a scan that resolves the cortex, the surface
+// is placed between voxels where the CT crosses the segmentation's surface
+// level (docs/surface.md, "Sub-voxel placement"): the mesh keeps the mask's
+// volume. An external mask is contoured as it is.
+TEST(EndToEnd, SurfaceFollowsTheCtOnlyWithItsOwnSegmentation) {
+  const Value& r = results("symmetric");
+  ASSERT_TRUE(r.is_object());
+  const double level = std::stod(r.at("parameters").at("surface_guide_level_hu").as_string());
+  const double offset = r.at("segmentation").at("calibration_offset_hu").as_number();
+  EXPECT_NEAR(level, 700.0 + offset, 1e-3);
+  const double mesh = r.at("mesh").at("volume_mm3").as_number(), mask = r.at("segmentation").at("volume_mm3").as_number();
+  EXPECT_NEAR(mesh, mask, 0.02 * mask);
+  const fs::path out = temp_dir("external_mask");
+  std::string err;
+  ASSERT_EQ(run("run " + (kSamples / "symmetric" / "dicom").string() + " --mask " +
+                    (kSamples / "symmetric" / "ground_truth" / "mandible_mask.nii.gz").string() + " --no-figures -q -o " +
+                    out.string(),
+                &err),
+            0)
+      << err;
+  const Value e = load(out / "results.json");
+  EXPECT_EQ(e.at("parameters").at("surface_guide_level_hu").as_string(), "none");
   fs::remove_all(out);
 }
 
