@@ -232,10 +232,10 @@ static std::pair<std::array<long, 3>, std::array<long, 3>> mask_box(const Mask& 
 // to 1: the values on either side are as far from 0.5 as the mask's 0 and 1,
 // so the Gaussian pre-smoothing does not push the contour outwards (with a
 // wider span, cortex at 0.9 against soft tissue at 0.17 did: +1.8 % volume on
-// the phantom mandible). Where
-// they disagree (a cut between touching bones, a filled cavity, a closed gap)
-// the voxel keeps its 0/1 value and the contour stays near half-way. The
-// contour keeps the mask's topology (every value stays on its side of 0.5).
+// the phantom mandible). Where they disagree (a cut between touching bones, a
+// filled cavity, a closed gap) the voxel keeps its 0/1 value and the contour
+// stays near half-way. Every value stays on its side of 0.5: the unsmoothed
+// contour has the mask's topology.
 static void guide_by_ct(float* buf, const int dims[3], const std::array<long, 3>& lo, long pad, const Volume& ct,
                         const Geometry& g, double level_hu, double soft_hu) {
   constexpr float kGuideMargin = 0.02f;
