@@ -622,6 +622,21 @@ TEST(BadInput, NiftiWithNaNOrientation) {  // found by fuzzing: vnl's SVD aborte
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "sizeof_hdr"});
 }
 
+TEST(BadInput, NiftiWithAbsurdOrigin) {  // found by fuzzing: a finite -2e38 mm offset made vnl's SVD spin forever
+  TempCase t;
+  const fs::path in = t / "far_origin.nii";
+  write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
+  std::fstream f(in, std::ios::in | std::ios::out | std::ios::binary);
+  const std::int16_t sform_code = 1;
+  const float far = -2.1267e38f;
+  f.seekp(254);
+  f.write(reinterpret_cast<const char*>(&sform_code), 2);
+  f.seekp(280 + 12);  // srow_x[3]: the x origin
+  f.write(reinterpret_cast<const char*>(&far), 4);
+  f.close();
+  expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "orientation"});
+}
+
 TEST(BadInput, NiftiWithZeroSizedDimension) {
   TempCase t;
   const fs::path in = t / "zero.nii";
