@@ -808,7 +808,6 @@ int choose(const ScanResult& scan, const std::vector<Layout>& layouts, std::stri
 
 namespace {
 
-// Stored values of every frame of a file, as doubles, frame-major.
 // Takes n stored values of B bytes each (little endian, as GDCM returns
 // them) and the bits actually stored; writes their integer values to out:
 // bits above BitsStored (overlays) dropped, two's complement sign-extended
@@ -827,6 +826,7 @@ void unpack_stored(const char* buf, std::size_t n, unsigned stored, bool is_sign
   }
 }
 
+// Stored values of every frame of a file, as doubles, frame-major.
 std::vector<double> decode_file(const Series& s, const std::string& file, unsigned rows, unsigned cols, unsigned n_frames) {
   gdcm::ImageReader ir;
   ir.SetFileName(file.c_str());

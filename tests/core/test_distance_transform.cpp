@@ -45,18 +45,28 @@ void each(const Dims3& d, F f) {
 const Dims3 kDims{19, 15, 13};
 const std::array<double, 3> kSpacing{0.45, 0.6, 1.25};
 
+// Squared distance from every voxel to the nearest voxel of m, by brute force.
+std::vector<double> brute_squared_distance(const std::vector<std::uint8_t>& m) {
+  std::vector<double> out(m.size());
+  each(kDims, [&](long i, long j, long k, std::size_t c) {
+    double best = ms::kNoFeature;
+    each(kDims, [&](long x, long y, long z, std::size_t q) {
+      if (!m[q]) return;
+      const double dx = (x - i) * kSpacing[0], dy = (y - j) * kSpacing[1], dz = (z - k) * kSpacing[2];
+      best = std::min(best, dx * dx + dy * dy + dz * dz);
+    });
+    out[c] = best;
+  });
+  return out;
+}
+
 TEST(DistanceTransform, SquaredDistanceIsExact) {
   for (unsigned seed : {1u, 2u}) {
     const auto m = blobs(kDims, seed, 0.52f);
     const auto d2 = ms::squared_distance_transform(m.data(), kDims, kSpacing);
+    const auto exact = brute_squared_distance(m);
     each(kDims, [&](long i, long j, long k, std::size_t c) {
-      double best = ms::kNoFeature;
-      each(kDims, [&](long x, long y, long z, std::size_t q) {
-        if (!m[q]) return;
-        const double dx = (x - i) * kSpacing[0], dy = (y - j) * kSpacing[1], dz = (z - k) * kSpacing[2];
-        best = std::min(best, dx * dx + dy * dy + dz * dz);
-      });
-      ASSERT_NEAR(d2[c], best, 1e-4 * (1 + best)) << i << " " << j << " " << k;
+      ASSERT_NEAR(d2[c], exact[c], 1e-4 * (1 + exact[c])) << i << " " << j << " " << k;
     });
   }
   const std::vector<std::uint8_t> none(kDims[0] * kDims[1] * kDims[2], 0);
@@ -68,16 +78,7 @@ TEST(DistanceTransform, SquaredDistanceIsExact) {
 // one) against brute force, and close_euclidean built on them.
 TEST(DistanceTransform, TruncatedDistanceIsExactUpToItsBound) {
   const auto m = blobs(kDims, 3, 0.53f);
-  std::vector<double> exact(m.size());
-  each(kDims, [&](long i, long j, long k, std::size_t c) {
-    double best = ms::kNoFeature;
-    each(kDims, [&](long x, long y, long z, std::size_t q) {
-      if (!m[q]) return;
-      const double dx = (x - i) * kSpacing[0], dy = (y - j) * kSpacing[1], dz = (z - k) * kSpacing[2];
-      best = std::min(best, dx * dx + dy * dy + dz * dz);
-    });
-    exact[c] = best;
-  });
+  const auto exact = brute_squared_distance(m);
   for (float max_sq : {0.2f, 1.0f, 2.9f, 9.0f, 60.0f}) {  // 60: reach beyond the window on every axis
     const auto d2 = ms::squared_distance_transform(m.data(), kDims, kSpacing, max_sq);
     std::size_t within = 0, beyond = 0;
