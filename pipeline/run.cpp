@@ -271,10 +271,11 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.surface = surf.mesh;
     S.closing_mm = surf.closing_mm;
     S.genus_before_closing = surf.genus_before_closing;
+    S.closing_plugs_only = surf.closing_plugs_only;
     if (surf.genus_before_closing > 0 && surf.closing_mm > 0)
-      S.warnings.push_back("surface: " + std::to_string(surf.genus_before_closing) + " handle(s) (e.g. teeth in contact) removed by a " +
-                           num(surf.closing_mm) + " mm closing before meshing; they would distort the harmonic fields "
-                           "(--close-handles 0 keeps them)");
+      S.warnings.push_back("surface: " + std::to_string(surf.genus_before_closing) + " handle(s) (e.g. teeth in contact) removed by " +
+                           (surf.closing_plugs_only ? "plugs from a " : "a ") + num(surf.closing_mm) +
+                           " mm closing before meshing; they would distort the harmonic fields (--close-handles 0 keeps them)");
     if (!surf.stats.closed) S.warnings.push_back("surface: the mesh is not closed; distances near holes are unreliable");
     if (surf.stats.genus > 0)
       S.warnings.push_back("surface: genus " + std::to_string(surf.stats.genus) +

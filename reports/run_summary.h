@@ -33,6 +33,7 @@ struct RunSummary {
   Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
   double closing_mm = 0;          // closing before meshing (0 = none)
   int genus_before_closing = -1;  // genus of the unclosed surface when automatic closing ran
+  bool closing_plugs_only = false;  // the closing was kept only where it removed handles
   landmarks::Result landmarks;
   landmarks::PalatalPlane palate;  // the head's superior direction (found = false: the scan's +S was used)
   Vec3 head_superior() const { return palate.found ? palate.superior : Vec3{0, 0, 1}; }

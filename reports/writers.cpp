@@ -163,6 +163,7 @@ json::Value results_json(const RunSummary& s) {
   mesh["closed"] = s.mesh.closed;
   mesh["manifold"] = s.mesh.manifold;
   mesh["closing_mm"] = s.closing_mm;
+  mesh["closing_scope"] = s.closing_mm <= 0 ? "none" : s.closing_plugs_only ? "handles" : "everywhere";
   mesh["genus_before_closing"] = s.genus_before_closing >= 0 ? Value(s.genus_before_closing) : Value();
 
   auto& lm = root["landmarks"];

@@ -28,6 +28,10 @@ struct Options {
   // skipped) and keep the first genus-0 result; none reaching genus 0 keeps
   // the unclosed surface (docs/surface.md).
   bool close_handles_auto = false;
+  // With a closing: keep only the closing's plugs, where it removed a handle
+  // or filled a cavity, not its fill of creases and fissures (homotopic
+  // thinning, core/topology.h). Auto closing tries this first at each radius.
+  bool closing_plugs_only = false;
   // Sub-voxel placement: with a CT on the mask's grid, the contour follows
   // the CT's iso-level guide_level_hu where it crosses between a mask voxel
   // and a non-mask neighbour (partial volume), instead of the midpoint; the
@@ -73,6 +77,7 @@ struct Result {
   RepairReport repair;
   double closing_mm = 0;          // closing radius applied (0 = none)
   int genus_before_closing = -1;  // genus of the unclosed surface when auto closing ran
+  bool closing_plugs_only = false;  // the closing was kept only where it changed the topology
 };
 
 // Throws ms::Error(GeometryFailed) if the mask yields no surface.

@@ -146,6 +146,7 @@ TEST(EndToEnd, ResultsJsonHasEveryKeyOfOutputsMd) {
   EXPECT_EQ(r.at("input").at("modality").as_string(), "CT");
   EXPECT_TRUE(r.at("mesh").at("closed").as_bool());
   EXPECT_EQ(r.at("mesh").at("closing_mm").as_number(), 0.0);  // the sample has no handles: nothing closed
+  EXPECT_EQ(r.at("mesh").at("closing_scope").as_string(), "none");
   // What the automatic segmentation used (the sample is calibrated, so the offset is small).
   EXPECT_LT(std::abs(r.at("segmentation").at("calibration_offset_hu").as_number()), 20.0);
   EXPECT_GT(r.at("segmentation").at("separation_depth_mm").as_number(), 0.0);

@@ -564,8 +564,9 @@ TEST(SurfaceMeasure, TorusHasGenusOne) {
 
 namespace {
 // A 30 x 20 x 20 mm block (1 mm voxels) pierced along y through its middle by
-// a square tunnel `width` voxels wide: one handle.
-ms::Mask pierced_block(int width) {
+// a square tunnel `width` voxels wide: one handle; optionally a 2 mm groove
+// along y in its top face (a crease, no handle).
+ms::Mask pierced_block(int width, bool groove = false) {
   ms::Mask m;
   m.geom.size = {40, 30, 30};
   m.data.assign(m.geom.voxel_count(), 0);
@@ -574,7 +575,8 @@ ms::Mask pierced_block(int width) {
     for (long j = 5; j < 25; ++j)
       for (long i = 5; i < 35; ++i) {
         const bool tunnel = i >= i0 && i < i0 + width && k >= k0 && k < k0 + width;
-        m.data[m.geom.linear(i, j, k)] = !tunnel;
+        const bool cut = groove && i >= 28 && i < 30 && k >= 21;
+        m.data[m.geom.linear(i, j, k)] = !tunnel && !cut;
       }
   return m;
 }
@@ -593,6 +595,7 @@ TEST(Surface, AutoClosingRemovesANarrowHandleAndKeepsAWideOne) {
   EXPECT_GE(closed.closing_mm, 1.0);
   EXPECT_LE(closed.closing_mm, 2.0);
   EXPECT_EQ(closed.genus_before_closing, 1);
+  EXPECT_TRUE(closed.closing_plugs_only);  // only the plug in the tunnel was kept
   EXPECT_NEAR(closed.stats.volume_mm3, open.stats.volume_mm3, 0.05 * open.stats.volume_mm3);
 
   // A 10 mm tunnel is anatomy, not an artefact: no radius up to 3 mm closes it,
@@ -606,6 +609,43 @@ TEST(Surface, AutoClosingRemovesANarrowHandleAndKeepsAWideOne) {
   ms::surface::Options fixed = o;
   fixed.close_handles_mm = 3;
   EXPECT_EQ(ms::surface::mesh_from_mask(pierced_block(2), fixed).closing_mm, 3.0);
+}
+
+TEST(Surface, AutoClosingPlugsTheHandleAndLeavesACreaseOpen) {
+  // The whole closing fills the groove as well as the tunnel; the automatic
+  // closing keeps only a plug in the tunnel (genus 0 all the same), so the
+  // groove's faces stay where the mask has them.
+  const ms::Mask m = pierced_block(2, true);
+  ms::surface::Options o;
+  o.close_handles_auto = true;
+  const auto plugged = ms::surface::mesh_from_mask(m, o);
+  ms::surface::Options fixed;
+  fixed.close_handles_mm = plugged.closing_mm;  // the whole closing at the same radius
+  const auto whole = ms::surface::mesh_from_mask(m, fixed);
+  const auto open = ms::surface::mesh_from_mask(m, ms::surface::Options{});
+  ASSERT_EQ(open.stats.genus, 1);
+  EXPECT_EQ(plugged.stats.genus, 0);
+  EXPECT_EQ(whole.stats.genus, 0);
+  EXPECT_TRUE(plugged.closing_plugs_only);
+  EXPECT_FALSE(whole.closing_plugs_only);
+  // Material added: a few voxels of plug against the tunnel's 80 and the groove's ~60.
+  const double added_plug = plugged.stats.volume_mm3 - open.stats.volume_mm3;
+  const double added_whole = whole.stats.volume_mm3 - open.stats.volume_mm3;
+  std::printf("added by the closing: plugs %.1f mm3, whole %.1f mm3\n", added_plug, added_whole);
+  EXPECT_LT(added_plug, 0.5 * added_whole);
+  // The groove's floor (voxel boundary z = 20.5, between its walls) is part
+  // of the plugged surface and buried under the whole closing's fill.
+  auto on_floor = [&](const ms::surface::Result& r) {
+    int n = 0;
+    for (const auto& v : r.mesh.vertices) {
+      const ms::Vec3 q = m.geom.lps_to_index(v);
+      n += q[0] > 28.0 && q[0] < 29.0 && q[2] > 19.5 && q[2] < 21.5 && q[1] > 7 && q[1] < 22;
+    }
+    return n;
+  };
+  std::printf("vertices on the groove's floor: plugs %d, whole %d\n", on_floor(plugged), on_floor(whole));
+  EXPECT_GE(on_floor(plugged), 10);
+  EXPECT_EQ(on_floor(whole), 0);
 }
 
 TEST(Surface, ClosingByDistanceTransformsEqualsTheBallClosing) {

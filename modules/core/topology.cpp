@@ -1,0 +1,155 @@
+#include "core/topology.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <queue>
+#include <utility>
+
+namespace ms {
+namespace {
+
+// The 3 x 3 x 3 neighbourhood as bit positions p = (dx+1) + 3 (dy+1) + 9 (dz+1);
+// the centre is 13.
+constexpr int kCentre = 13;
+
+struct Neighbourhood {
+  std::array<std::uint32_t, 27> adj6{};   // 6-neighbours of each position inside the cube, centre excluded
+  std::array<std::uint32_t, 27> adj26{};  // 26-neighbours likewise
+  std::uint32_t n26 = 0, n18 = 0, n6 = 0; // the centre's neighbourhoods, centre excluded
+  Neighbourhood() {
+    auto pos = [](int x, int y, int z) { return (x + 1) + 3 * (y + 1) + 9 * (z + 1); };
+    for (int z = -1; z <= 1; ++z)
+      for (int y = -1; y <= 1; ++y)
+        for (int x = -1; x <= 1; ++x) {
+          const int p = pos(x, y, z), l1 = std::abs(x) + std::abs(y) + std::abs(z);
+          if (p == kCentre) continue;
+          n26 |= 1u << p;
+          if (l1 <= 2) n18 |= 1u << p;
+          if (l1 == 1) n6 |= 1u << p;
+          for (int c = -1; c <= 1; ++c)
+            for (int b = -1; b <= 1; ++b)
+              for (int a = -1; a <= 1; ++a) {
+                const int X = x + a, Y = y + b, Z = z + c;
+                if ((a == 0 && b == 0 && c == 0) || std::abs(X) > 1 || std::abs(Y) > 1 || std::abs(Z) > 1) continue;
+                const int q = pos(X, Y, Z);
+                if (q == kCentre) continue;
+                adj26[static_cast<std::size_t>(p)] |= 1u << q;
+                if (std::abs(a) + std::abs(b) + std::abs(c) == 1) adj6[static_cast<std::size_t>(p)] |= 1u << q;
+              }
+        }
+  }
+};
+
+const Neighbourhood& neighbourhood() {
+  static const Neighbourhood n;
+  return n;
+}
+
+int lowest_bit(std::uint32_t v) { return __builtin_ctz(v); }
+
+// Removes from `set` the component of `seed` under the adjacency `adj`.
+void take_component(std::uint32_t& set, int seed, const std::array<std::uint32_t, 27>& adj) {
+  std::uint32_t frontier = 1u << seed;
+  set &= ~frontier;
+  while (frontier) {
+    const int p = lowest_bit(frontier);
+    frontier &= frontier - 1;
+    const std::uint32_t next = adj[static_cast<std::size_t>(p)] & set;
+    set &= ~next;
+    frontier |= next;
+  }
+}
+
+// Bits of the 26 neighbours of (i, j, k) that are object; outside the grid is background.
+std::uint32_t object_bits(const std::uint8_t* m, const Dims3& d, std::size_t i, std::size_t j, std::size_t k) {
+  std::uint32_t bits = 0;
+  const bool inner = i > 0 && j > 0 && k > 0 && i + 1 < d[0] && j + 1 < d[1] && k + 1 < d[2];
+  for (int z = -1, p = 0; z <= 1; ++z)
+    for (int y = -1; y <= 1; ++y)
+      for (int x = -1; x <= 1; ++x, ++p) {
+        const long X = static_cast<long>(i) + x, Y = static_cast<long>(j) + y, Z = static_cast<long>(k) + z;
+        if (!inner && (X < 0 || Y < 0 || Z < 0 || X >= static_cast<long>(d[0]) || Y >= static_cast<long>(d[1]) ||
+                       Z >= static_cast<long>(d[2])))
+          continue;
+        if (m[static_cast<std::size_t>(X) + d[0] * (static_cast<std::size_t>(Y) + d[1] * static_cast<std::size_t>(Z))])
+          bits |= 1u << p;
+      }
+  return bits & ~(1u << kCentre);
+}
+
+}  // namespace
+
+bool is_simple_point(const std::uint8_t* mask, const Dims3& dims, std::size_t i, std::size_t j, std::size_t k) {
+  const Neighbourhood& N = neighbourhood();
+  const std::uint32_t object = object_bits(mask, dims, i, j, k);
+  // Object: 6-components in the 18-neighbourhood that touch a face neighbour.
+  std::uint32_t rest = object & N.n18;
+  int components = 0;
+  for (std::uint32_t faces = rest & N.n6; faces; faces = rest & N.n6) {
+    take_component(rest, lowest_bit(faces), N.adj6);
+    if (++components > 1) return false;
+  }
+  if (components != 1) return false;
+  // Background: 26-components in the 26-neighbourhood.
+  std::uint32_t background = ~object & N.n26;
+  if (!background) return false;
+  take_component(background, lowest_bit(background), N.adj26);
+  return background == 0;
+}
+
+std::size_t keep_closing_plugs(std::vector<std::uint8_t>& closed, const std::vector<std::uint8_t>& original,
+                               const Dims3& dims, const std::array<double, 3>& spacing, double thicken_mm) {
+  const std::size_t n = closed.size();
+  const std::vector<float> depth = squared_distance_transform(original.data(), dims, spacing);
+  std::vector<std::uint8_t> added(n, 0), queued(n, 0);
+  using Entry = std::pair<float, std::size_t>;  // (squared distance to the original, voxel): farthest first
+  std::vector<Entry> start;
+  for (std::size_t v = 0; v < n; ++v)
+    if (closed[v] && !original[v]) {
+      added[v] = 1;
+      queued[v] = 1;
+      start.emplace_back(depth[v], v);
+    }
+  std::priority_queue<Entry> queue(std::less<Entry>(), std::move(start));
+  const std::size_t dx = dims[0], dxy = dims[0] * dims[1];
+  while (!queue.empty()) {
+    const std::size_t v = queue.top().second;
+    queue.pop();
+    queued[v] = 0;
+    const std::size_t i = v % dx, j = (v / dx) % dims[1], k = v / dxy;
+    if (!is_simple_point(closed.data(), dims, i, j, k)) continue;  // for now: a neighbour's removal brings it back
+    closed[v] = 0;
+    for (int z = -1; z <= 1; ++z)
+      for (int y = -1; y <= 1; ++y)
+        for (int x = -1; x <= 1; ++x) {
+          const long X = static_cast<long>(i) + x, Y = static_cast<long>(j) + y, Z = static_cast<long>(k) + z;
+          if (X < 0 || Y < 0 || Z < 0 || X >= static_cast<long>(dims[0]) || Y >= static_cast<long>(dims[1]) ||
+              Z >= static_cast<long>(dims[2]))
+            continue;
+          const std::size_t u = static_cast<std::size_t>(X) + dx * static_cast<std::size_t>(Y) + dxy * static_cast<std::size_t>(Z);
+          if (added[u] && closed[u] && !queued[u]) {
+            queued[u] = 1;
+            queue.emplace(depth[u], u);
+          }
+        }
+  }
+  // Thicken: give back the added voxels within thicken_mm of what is left of
+  // them, nearest first, each only if it is simple (adding it changes no
+  // topology either: a thickened plug could otherwise enclose a cavity).
+  std::vector<std::uint8_t> plug(n, 0);
+  for (std::size_t v = 0; v < n; ++v) plug[v] = added[v] && closed[v];
+  const float t2 = static_cast<float>(thicken_mm * thicken_mm);
+  const std::vector<float> near = squared_distance_transform(plug.data(), dims, spacing, t2);
+  std::vector<Entry> shell;
+  for (std::size_t v = 0; v < n; ++v)
+    if (added[v] && !closed[v] && near[v] <= t2) shell.emplace_back(near[v], v);
+  std::sort(shell.begin(), shell.end());
+  for (int pass = 0; pass < 2; ++pass)  // a second pass takes what the first made simple
+    for (const auto& [d2, v] : shell)
+      if (!closed[v] && is_simple_point(closed.data(), dims, v % dx, (v / dx) % dims[1], v / dxy)) closed[v] = 1;
+  std::size_t kept = 0;
+  for (std::size_t v = 0; v < n; ++v) kept += added[v] && closed[v];
+  return kept;
+}
+
+}  // namespace ms
