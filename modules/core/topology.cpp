@@ -1,9 +1,12 @@
 #include "core/topology.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <queue>
 #include <utility>
+
+#include "core/debug_lap.h"
 
 namespace ms {
 namespace {
@@ -97,58 +100,122 @@ bool is_simple_point(const std::uint8_t* mask, const Dims3& dims, std::size_t i,
   return background == 0;
 }
 
+namespace {
+
+// Offsets of the voxels within radius_mm of a voxel (itself included), nearest first.
+struct BallOffset {
+  int x, y, z;
+  float d2;
+};
+std::vector<BallOffset> ball_offsets(const std::array<double, 3>& spacing, double radius_mm) {
+  std::vector<BallOffset> out;
+  int reach[3];
+  for (int a = 0; a < 3; ++a) reach[a] = static_cast<int>(std::floor(radius_mm / spacing[static_cast<std::size_t>(a)]));
+  const double r2 = radius_mm * radius_mm * 1.0001;  // a hair more: rounding of a distance exactly r
+  for (int z = -reach[2]; z <= reach[2]; ++z)
+    for (int y = -reach[1]; y <= reach[1]; ++y)
+      for (int x = -reach[0]; x <= reach[0]; ++x) {
+        const double d2 = x * x * spacing[0] * spacing[0] + y * y * spacing[1] * spacing[1] + z * z * spacing[2] * spacing[2];
+        if (d2 <= r2) out.push_back({x, y, z, static_cast<float>(d2)});
+      }
+  std::stable_sort(out.begin(), out.end(), [](const BallOffset& a, const BallOffset& b) { return a.d2 < b.d2; });
+  return out;
+}
+
+// Squared distance from voxel (i, j, k) to the nearest voxel with in(u) true
+// among the ball's offsets; kNoFeature when none is within it.
+template <class In>
+float nearest_in_ball(const std::vector<BallOffset>& ball, const Dims3& d, long i, long j, long k, In in) {
+  for (const BallOffset& o : ball) {
+    const long X = i + o.x, Y = j + o.y, Z = k + o.z;
+    if (X < 0 || Y < 0 || Z < 0 || X >= static_cast<long>(d[0]) || Y >= static_cast<long>(d[1]) || Z >= static_cast<long>(d[2]))
+      continue;
+    if (in(static_cast<std::size_t>(X) + d[0] * (static_cast<std::size_t>(Y) + d[1] * static_cast<std::size_t>(Z)))) return o.d2;
+  }
+  return kNoFeature;
+}
+
+}  // namespace
+
 std::size_t keep_closing_plugs(std::vector<std::uint8_t>& closed, const std::vector<std::uint8_t>& original,
-                               const Dims3& dims, const std::array<double, 3>& spacing, double thicken_mm) {
+                               const Dims3& dims, const std::array<double, 3>& spacing, double radius_mm,
+                               double thicken_mm) {
+  DebugLap lap("MANDISYM_DEBUG_SURFACE", "surface   ");
   const std::size_t n = closed.size();
-  const std::vector<float> depth = squared_distance_transform(original.data(), dims, spacing);
-  std::vector<std::uint8_t> added(n, 0), queued(n, 0);
-  using Entry = std::pair<float, std::size_t>;  // (squared distance to the original, voxel): farthest first
-  std::vector<Entry> start;
-  for (std::size_t v = 0; v < n; ++v)
-    if (closed[v] && !original[v]) {
-      added[v] = 1;
-      queued[v] = 1;
-      start.emplace_back(depth[v], v);
-    }
-  std::priority_queue<Entry> queue(std::less<Entry>(), std::move(start));
   const std::size_t dx = dims[0], dxy = dims[0] * dims[1];
+  auto ijk = [&](std::size_t v) {
+    return std::array<long, 3>{static_cast<long>(v % dx), static_cast<long>((v / dx) % dims[1]), static_cast<long>(v / dxy)};
+  };
+  // The added voxels and their depth: the distance to the nearest original
+  // voxel, within the closing's radius by construction (searched in a ball
+  // nearest first: a closing of a large crop adds a few thousand voxels, and
+  // a distance transform of the whole crop would cost more than all the rest).
+  constexpr std::uint8_t kAdded = 1, kQueued = 2;
+  std::vector<std::uint8_t> state(n, 0);
+  std::vector<std::size_t> added;
+  for (std::size_t v = 0; v < n; ++v)
+    if (closed[v] && !original[v]) added.push_back(v), state[v] = kAdded | kQueued;
+  if (added.empty()) return 0;
+  const std::vector<BallOffset> depth_ball = ball_offsets(spacing, radius_mm);
+  using Entry = std::pair<float, std::size_t>;  // (squared depth, voxel): deepest first
+  std::vector<Entry> start(added.size());
+#pragma omp parallel for schedule(static)
+  for (long a = 0; a < static_cast<long>(added.size()); ++a) {
+    const std::size_t v = added[static_cast<std::size_t>(a)];
+    const auto [i, j, k] = ijk(v);
+    start[static_cast<std::size_t>(a)] = {nearest_in_ball(depth_ball, dims, i, j, k, [&](std::size_t u) { return original[u] != 0; }), v};
+  }
+  lap("plugs: depth");
+
+  // Homotopic thinning: a voxel that is not simple when its turn comes is
+  // queued again when a neighbour goes.
+  std::priority_queue<Entry> queue(std::less<Entry>(), std::move(start));
   while (!queue.empty()) {
-    const std::size_t v = queue.top().second;
+    const auto [d2, v] = queue.top();
     queue.pop();
-    queued[v] = 0;
-    const std::size_t i = v % dx, j = (v / dx) % dims[1], k = v / dxy;
-    if (!is_simple_point(closed.data(), dims, i, j, k)) continue;  // for now: a neighbour's removal brings it back
+    state[v] &= static_cast<std::uint8_t>(~kQueued);
+    const auto [i, j, k] = ijk(v);
+    if (!is_simple_point(closed.data(), dims, static_cast<std::size_t>(i), static_cast<std::size_t>(j), static_cast<std::size_t>(k)))
+      continue;
     closed[v] = 0;
     for (int z = -1; z <= 1; ++z)
       for (int y = -1; y <= 1; ++y)
         for (int x = -1; x <= 1; ++x) {
-          const long X = static_cast<long>(i) + x, Y = static_cast<long>(j) + y, Z = static_cast<long>(k) + z;
+          const long X = i + x, Y = j + y, Z = k + z;
           if (X < 0 || Y < 0 || Z < 0 || X >= static_cast<long>(dims[0]) || Y >= static_cast<long>(dims[1]) ||
               Z >= static_cast<long>(dims[2]))
             continue;
           const std::size_t u = static_cast<std::size_t>(X) + dx * static_cast<std::size_t>(Y) + dxy * static_cast<std::size_t>(Z);
-          if (added[u] && closed[u] && !queued[u]) {
-            queued[u] = 1;
-            queue.emplace(depth[u], u);
+          if ((state[u] & kAdded) && closed[u] && !(state[u] & kQueued)) {
+            state[u] |= kQueued;
+            const auto [a, b, c] = ijk(u);
+            queue.emplace(nearest_in_ball(depth_ball, dims, a, b, c, [&](std::size_t w) { return original[w] != 0; }), u);
           }
         }
   }
+  lap("plugs: thinning");
+
   // Thicken: give back the added voxels within thicken_mm of what is left of
   // them, nearest first, each only if it is simple (adding it changes no
   // topology either: a thickened plug could otherwise enclose a cavity).
   std::vector<std::uint8_t> plug(n, 0);
-  for (std::size_t v = 0; v < n; ++v) plug[v] = added[v] && closed[v];
-  const float t2 = static_cast<float>(thicken_mm * thicken_mm);
-  const std::vector<float> near = squared_distance_transform(plug.data(), dims, spacing, t2);
+  for (std::size_t v : added) plug[v] = closed[v];
+  const std::vector<BallOffset> thick_ball = ball_offsets(spacing, thicken_mm);
   std::vector<Entry> shell;
-  for (std::size_t v = 0; v < n; ++v)
-    if (added[v] && !closed[v] && near[v] <= t2) shell.emplace_back(near[v], v);
+  for (std::size_t v : added) {
+    if (closed[v]) continue;
+    const auto [i, j, k] = ijk(v);
+    const float d2 = nearest_in_ball(thick_ball, dims, i, j, k, [&](std::size_t u) { return plug[u] != 0; });
+    if (d2 < kNoFeature) shell.emplace_back(d2, v);
+  }
   std::sort(shell.begin(), shell.end());
   for (int pass = 0; pass < 2; ++pass)  // a second pass takes what the first made simple
     for (const auto& [d2, v] : shell)
       if (!closed[v] && is_simple_point(closed.data(), dims, v % dx, (v / dx) % dims[1], v / dxy)) closed[v] = 1;
   std::size_t kept = 0;
-  for (std::size_t v = 0; v < n; ++v) kept += added[v] && closed[v];
+  for (std::size_t v : added) kept += closed[v];
+  lap("plugs: thickening");
+  if (lap.on()) std::fprintf(stderr, "  surface     plugs: %zu of %zu added voxels kept\n", kept, added.size());
   return kept;
 }
 

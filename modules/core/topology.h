@@ -24,17 +24,20 @@ namespace ms {
 // the grid counts as background. The voxel's own value is ignored.
 bool is_simple_point(const std::uint8_t* mask, const Dims3& dims, std::size_t i, std::size_t j, std::size_t k);
 
-// The part of a closing that changes topology. `closed` must contain
-// `original` (a closing of it); every voxel closed but not original that can
-// be given back to the background without changing the topology of `closed`
-// is given back, those farthest from `original` first (homotopic thinning),
-// so what is left are thin plugs where the closing removed a handle or filled
-// a cavity, at the tunnel's narrowest place, and nothing where it filled a
-// crease. The plugs are then thickened to the added voxels within
-// thicken_mm of them (a one-voxel sheet would not survive smoothing). In
-// place on `closed`; returns the number of added voxels kept. Voxels on the
-// grid's faces must be background in `closed`.
+// The part of a closing that changes topology. `closed` must be a closing of
+// `original` by a ball of radius_mm (every voxel it adds lies within
+// radius_mm of `original`); every voxel closed but not original that can be
+// given back to the background without changing the topology of `closed` is
+// given back, those farthest from `original` first (homotopic thinning), so
+// what is left are thin plugs where the closing removed a handle or filled a
+// cavity, at the tunnel's narrowest place, and nothing where it filled a
+// crease. The plugs are then thickened by the removed voxels within
+// thicken_mm of them that are simple to add back (a one-voxel sheet would not
+// survive smoothing; the topology stays the closing's). In place on
+// `closed`; returns the number of added voxels kept. Works on the added
+// voxels' bounding box; outside the grid counts as background.
 std::size_t keep_closing_plugs(std::vector<std::uint8_t>& closed, const std::vector<std::uint8_t>& original,
-                               const Dims3& dims, const std::array<double, 3>& spacing, double thicken_mm);
+                               const Dims3& dims, const std::array<double, 3>& spacing, double radius_mm,
+                               double thicken_mm);
 
 }  // namespace ms

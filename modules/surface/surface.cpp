@@ -137,7 +137,7 @@ static void close_binary(float* buf, const int dims[3], const double spacing[3],
   if (plugs_only) {
     const std::vector<std::uint8_t> original = m;
     close_euclidean(m, d, s, r);
-    keep_closing_plugs(m, original, d, s, std::max({1.0, s[0], s[1], s[2]}));
+    keep_closing_plugs(m, original, d, s, r, std::max({1.0, s[0], s[1], s[2]}));
   } else {
     close_euclidean(m, d, s, r);
   }

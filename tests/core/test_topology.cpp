@@ -145,7 +145,7 @@ TEST(Topology, ClosingPlugsKeepTheClosingsTopologyAndLeaveCreasesOpen) {
   Grid full = original;
   ms::close_euclidean(full, d, s, 2.0);
   Grid plugs = full;
-  const std::size_t kept = ms::keep_closing_plugs(plugs, original, d, s, 1.0);
+  const std::size_t kept = ms::keep_closing_plugs(plugs, original, d, s, 2.0, 1.0);
 
   EXPECT_EQ(topology(original, d).chi, 0);  // a solid torus: one handle
   EXPECT_EQ(topology(full, d).chi, 1);      // closed: a solid ball
@@ -191,7 +191,7 @@ TEST(Topology, ClosingPlugsKeepTheTopologyOfRandomClosings) {
     Grid full = original;
     ms::close_euclidean(full, d, s, 1.6);
     Grid plugs = full;
-    ms::keep_closing_plugs(plugs, original, d, s, 1.0);
+    ms::keep_closing_plugs(plugs, original, d, s, 1.6, 1.0);
     EXPECT_EQ(topology(plugs, d), topology(full, d)) << "trial " << trial;
   }
 }
