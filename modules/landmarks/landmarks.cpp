@@ -339,9 +339,19 @@ Result detect(const Mesh& mesh, const Options& opt) {
       if (A[static_cast<std::size_t>(v)] < afront + 20.0) sym.push_back(v);
     const int me = plateau(V, sym, [&](std::size_t v) { return -H[v]; }, tol);
     if (me >= 0) {
-      // (the lower border is nearly flat antero-posteriorly: a quadratic
-      // apex there is ill-conditioned, so menton stays the plateau vertex)
-      r.landmarks.set("Me", V[static_cast<std::size_t>(me)]);
+      // The lower border is nearly flat antero-posteriorly: a quadratic apex
+      // there is ill-conditioned, and any one vertex of the flat bottom is
+      // where the triangulation happened to put it (the same scan mirrored
+      // moved it 0.9 mm). Menton is the centre of the bottom — the mean of the
+      // vertices within tol of the lowest — at the lowest vertex's height.
+      Vec3 c{0, 0, 0};
+      double hmin = kInf;
+      int cnt = 0;
+      for (int v : sym) hmin = std::min(hmin, H[static_cast<std::size_t>(v)]);
+      for (int v : sym)
+        if (H[static_cast<std::size_t>(v)] <= hmin + tol) c = c + V[static_cast<std::size_t>(v)], ++cnt;
+      c = (1.0 / cnt) * c;
+      r.landmarks.set("Me", c + (hmin - dot(c - r.plane.point, e_si)) * e_si);
       const double hme = H[static_cast<std::size_t>(me)];
       std::vector<int> chin;  // below the alveolar process and the incisors
       for (int v : band)
