@@ -6,6 +6,7 @@
 #include <queue>
 #include <array>
 
+#include "core/debug_lap.h"
 #include "core/hull2d.h"
 #include "geometry/mesh_geometry.h"
 #include "reference/reference.h"
@@ -210,9 +211,12 @@ Result detect(const Mesh& mesh, const Options& opt) {
   }
 
   // 2. Geodesic extremities (METHOD.md §2).
+  DebugLap lap("MANDISYM_DEBUG_LANDMARKS", "landmarks");
   const Graph g = geometry::edge_graph(mesh);
   const std::vector<double> agd = average_geodesic_distance(g, n, opt.agd_samples);
+  lap("  geodesic distances");
   const std::vector<int> ext = extremities(g, agd, opt.extremity_radius_mm);
+  lap("  extremities");
   for (int e : ext) r.extremities.push_back(V[static_cast<std::size_t>(e)]);
   std::vector<double> scratch(n, kInf);
   const double tol = 0.3;  // mm: plateau tolerance for extreme points
@@ -384,8 +388,11 @@ Result detect(const Mesh& mesh, const Options& opt) {
 Result detect_in_head_frame(const Volume& ct, const Mesh& mesh, Options options, const PalateOptions& palate_options,
                             PalatalPlane* palate) {
   if (mesh.vertices.size() < 100 || mesh.faces.empty()) return detect(mesh, options);
+  DebugLap lap("MANDISYM_DEBUG_LANDMARKS", "landmarks");
   options.plane = mandible_plane(mesh);
+  lap("mandible plane");
   const PalatalPlane pp = find_palatal_plane(ct, mesh, *options.plane, palate_options);
+  lap("palatal plane");
   std::vector<std::string> notes;
   if (pp.found) {
     options.superior = pp.superior;
@@ -397,6 +404,7 @@ Result detect_in_head_frame(const Volume& ct, const Mesh& mesh, Options options,
                     "): 'superior' is the scan's axis, so a pitched head moves Me, Pog and Cr");
   }
   Result r = detect(mesh, options);
+  lap("detect");
   r.warnings.insert(r.warnings.begin(), notes.begin(), notes.end());
   if (palate) *palate = pp;
   return r;

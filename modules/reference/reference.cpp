@@ -225,6 +225,7 @@ Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const O
   double rms = 0;
   if (surface.faces.size() > 100) {
     const geometry::ClosestPointIndex index(surface);
+    index.closest(surface.vertices[0]);  // builds CGAL's search tree before the parallel queries
     const auto fn = geometry::face_normals(surface);
     const std::size_t step = std::max<std::size_t>(1, surface.vertices.size() / opt.icp_samples);
     // Huber rounds converge from far; then redescending (Cauchy) rounds let
@@ -236,9 +237,16 @@ Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const O
       ceres::Problem icp;
       icp.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
       icp.AddParameterBlock(d, 1);
+      // Closest points of the reflected samples, in parallel (the tree is
+      // read-only); the residuals are then added in order.
+      const long samples = static_cast<long>((surface.vertices.size() + step - 1) / step);
+      std::vector<geometry::ClosestHit> hits(static_cast<std::size_t>(samples));
+#pragma omp parallel for schedule(static)
+      for (long s = 0; s < samples; ++s)
+        hits[static_cast<std::size_t>(s)] = index.closest(pl.reflect(surface.vertices[static_cast<std::size_t>(s) * step]));
       for (std::size_t i = 0; i < surface.vertices.size(); i += step) {
         const Vec3& v = surface.vertices[i];
-        const auto hit = index.closest(pl.reflect(v));
+        const auto& hit = hits[i / step];
         ceres::LossFunction* loss = cauchy ? static_cast<ceres::LossFunction*>(new ceres::CauchyLoss(opt.icp_cauchy_mm))
                                            : static_cast<ceres::LossFunction*>(new ceres::HuberLoss(opt.icp_huber_mm));
         icp.AddResidualBlock(new ceres::AutoDiffCostFunction<MirrorResidual, 1, 3, 1>(
