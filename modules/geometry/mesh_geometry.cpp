@@ -5,9 +5,11 @@
 #include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Simple_cartesian.h>
 
+#include <array>
 #include <cmath>
 #include <algorithm>
 #include <limits>
+#include <map>
 #include <queue>
 
 namespace ms::geometry {
@@ -80,6 +82,100 @@ std::vector<Vec3> face_normals(const Mesh& m) {
     n[i] = l > 0 ? (1.0 / l) * c : Vec3{0, 0, 0};
   }
   return n;
+}
+
+Mesh cut_along_spheres(const Mesh& mesh, const std::vector<Vec3>& centres, double r, std::vector<int>* face_parent) {
+  constexpr double kSnap = 0.15;  // fraction of an edge within which an endpoint is moved instead of splitting
+  Mesh m = mesh;
+  std::vector<int> parent(m.faces.size());
+  for (std::size_t f = 0; f < parent.size(); ++f) parent[f] = static_cast<int>(f);
+  for (const Vec3& c : centres) {
+    auto offset = [&](int v) { return distance(m.vertices[static_cast<std::size_t>(v)], c) - r; };
+    // Where segment a-b crosses the sphere: the root of |a + t (b - a) - c| = r in (0, 1).
+    auto crossing = [&](int a, int b) {
+      const Vec3 p = m.vertices[static_cast<std::size_t>(a)], d = m.vertices[static_cast<std::size_t>(b)] - p, f = p - c;
+      const double A = dot(d, d), B = 2 * dot(f, d), C = dot(f, f) - r * r;
+      const double q = std::sqrt(std::max(0.0, B * B - 4 * A * C));
+      const double t1 = (-B - q) / (2 * A), t2 = (-B + q) / (2 * A);
+      return std::clamp(t1 > 0 && t1 < 1 ? t1 : t2, 0.0, 1.0);
+    };
+    auto point_at = [&](int a, int b, double t) {
+      const Vec3& p = m.vertices[static_cast<std::size_t>(a)];
+      return p + t * (m.vertices[static_cast<std::size_t>(b)] - p);
+    };
+    constexpr double kOn = 1e-9;  // mm: on the sphere
+    // 1. Snap endpoints near a crossing onto it: each vertex to its nearest
+    //    crossing within kSnap of an edge, decided on the positions before
+    //    any move (independent of the order of faces and edges).
+    std::vector<std::pair<double, Vec3>> snap(m.vertices.size(), {kSnap, Vec3{0, 0, 0}});
+    for (const auto& f : m.faces)
+      for (int e = 0; e < 3; ++e) {
+        const int a = f[static_cast<std::size_t>(e)], b = f[static_cast<std::size_t>((e + 1) % 3)];
+        const double oa = offset(a), ob = offset(b);
+        if (std::abs(oa) < kOn || std::abs(ob) < kOn || (oa < 0) == (ob < 0)) continue;
+        const double t = crossing(a, b);
+        auto& sa = snap[static_cast<std::size_t>(a)];
+        auto& sb = snap[static_cast<std::size_t>(b)];
+        if (t < sa.first) sa = {t, point_at(a, b, t)};
+        if (1 - t < sb.first) sb = {1 - t, point_at(a, b, t)};
+      }
+    for (std::size_t v = 0; v < snap.size(); ++v)
+      if (snap[v].first < kSnap) m.vertices[v] = snap[v].second;
+    // 2. Split the edges still crossing; each face keeps its orientation.
+    auto side = [&](int v) {
+      const double o = offset(v);
+      return std::abs(o) < kOn ? 0 : (o < 0 ? -1 : 1);
+    };
+    std::map<std::pair<int, int>, int> split;
+    auto mid = [&](int a, int b) {
+      const std::pair<int, int> key{std::min(a, b), std::max(a, b)};
+      const auto it = split.find(key);
+      if (it != split.end()) return it->second;
+      m.vertices.push_back(point_at(key.first, key.second, crossing(key.first, key.second)));
+      const int id = static_cast<int>(m.vertices.size()) - 1;
+      split.emplace(key, id);
+      return id;
+    };
+    std::vector<std::array<int, 3>> faces;
+    std::vector<int> parents;
+    faces.reserve(m.faces.size());
+    for (std::size_t fi = 0; fi < m.faces.size(); ++fi) {
+      const auto& f = m.faces[fi];
+      const int s[3] = {side(f[0]), side(f[1]), side(f[2])};
+      bool cross[3];
+      int n = 0;
+      for (int e = 0; e < 3; ++e) n += cross[e] = s[e] * s[(e + 1) % 3] < 0;
+      auto emit = [&](int x, int y, int z) { faces.push_back({x, y, z}), parents.push_back(parent[fi]); };
+      if (n == 0) {
+        emit(f[0], f[1], f[2]);
+      } else if (n == 2) {  // vertex k alone on its side: its two edges cross
+        const int k = cross[0] && cross[2] ? 0 : (cross[0] && cross[1] ? 1 : 2);
+        const int a = f[static_cast<std::size_t>(k)], b = f[static_cast<std::size_t>((k + 1) % 3)], d = f[static_cast<std::size_t>((k + 2) % 3)];
+        const int ab = mid(a, b), da = mid(d, a);
+        emit(a, ab, da);
+        // The quad ab, b, d, da along its shorter diagonal (a geometric
+        // choice: a mirror-image mesh is cut into the mirror image).
+        if (distance(m.vertices[static_cast<std::size_t>(ab)], m.vertices[static_cast<std::size_t>(d)]) <=
+            distance(m.vertices[static_cast<std::size_t>(b)], m.vertices[static_cast<std::size_t>(da)])) {
+          emit(ab, b, d);
+          emit(ab, d, da);
+        } else {
+          emit(ab, b, da);
+          emit(b, d, da);
+        }
+      } else {  // one crossing edge, the opposite vertex on the sphere
+        const int k = cross[0] ? 0 : (cross[1] ? 1 : 2);
+        const int a = f[static_cast<std::size_t>(k)], b = f[static_cast<std::size_t>((k + 1) % 3)], d = f[static_cast<std::size_t>((k + 2) % 3)];
+        const int ab = mid(a, b);
+        emit(a, ab, d);
+        emit(ab, b, d);
+      }
+    }
+    m.faces = std::move(faces);
+    parent = std::move(parents);
+  }
+  if (face_parent) *face_parent = std::move(parent);
+  return m;
 }
 
 std::vector<double> face_areas(const Mesh& m) {

@@ -45,6 +45,15 @@ std::vector<Vec3> vertex_normals(const Mesh& mesh);
 
 int nearest_vertex(const Mesh& mesh, const Vec3& p);
 
+// The mesh cut along the spheres of radius r around each centre, so that the
+// vertices within r of a centre make a disk whose border lies on the circle
+// itself, not wherever the triangulation put its vertices: an edge crossing a
+// sphere is split at the crossing, or, when the crossing is within 15 % of the
+// edge from an endpoint, that endpoint is moved along the edge onto it (no
+// slivers). The original vertices keep their indices (new ones follow);
+// face_parent (optional) receives each new face's face in the input.
+Mesh cut_along_spheres(const Mesh& mesh, const std::vector<Vec3>& centres, double r, std::vector<int>* face_parent = nullptr);
+
 // Vertex graph of a mesh (compressed rows, unique neighbours) with edge
 // lengths in mm, built once for repeated Dijkstra runs.
 struct EdgeGraph {
