@@ -309,12 +309,9 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
   // it — 0.1 mm of radius moved a score by 15-30 % (docs/method.md).
   LandmarkSet centres;
   std::vector<Vec3> points;
-  {
-    const geometry::ClosestPointIndex index(mesh);
-    for (const auto& [name, p] : anchors.points) {
-      centres.set(name, index.closest(p).point);
-      points.push_back(*centres.find(name));
-    }
+  for (const auto& [name, p] : anchors.points) {
+    centres.set(name, geometry::closest_point_brute_force(mesh, p));
+    points.push_back(*centres.find(name));
   }
   std::vector<int> parent;
   const Mesh cut = geometry::cut_along_spheres(mesh, points, opt.disk_radius_mm, &parent);

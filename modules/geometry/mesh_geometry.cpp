@@ -84,13 +84,52 @@ std::vector<Vec3> face_normals(const Mesh& m) {
   return n;
 }
 
+namespace {
+// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5).
+Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3 bp = p - b;
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + (d1 / (d1 - d3)) * ab;
+  const Vec3 cp = p - c;
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + (d2 / (d2 - d6)) * ac;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b);
+  const double den = 1.0 / (va + vb + vc);
+  return a + (vb * den) * ab + (vc * den) * ac;
+}
+}  // namespace
+
+Vec3 closest_point_brute_force(const Mesh& mesh, const Vec3& p) {
+  Vec3 best = p;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (const auto& f : mesh.faces) {
+    const Vec3 q = closest_on_triangle(p, mesh.vertices[static_cast<std::size_t>(f[0])], mesh.vertices[static_cast<std::size_t>(f[1])],
+                                       mesh.vertices[static_cast<std::size_t>(f[2])]);
+    const Vec3 d = q - p;
+    if (dot(d, d) < best_d2) best_d2 = dot(d, d), best = q;
+  }
+  return best;
+}
+
 Mesh cut_along_spheres(const Mesh& mesh, const std::vector<Vec3>& centres, double r, std::vector<int>* face_parent) {
   constexpr double kSnap = 0.15;  // fraction of an edge within which an endpoint is moved instead of splitting
   Mesh m = mesh;
   std::vector<int> parent(m.faces.size());
   for (std::size_t f = 0; f < parent.size(); ++f) parent[f] = static_cast<int>(f);
   for (const Vec3& c : centres) {
-    auto offset = [&](int v) { return distance(m.vertices[static_cast<std::size_t>(v)], c) - r; };
+    // Signed distance of each vertex to the sphere, once per sphere (and
+    // again for the vertices a snap moves).
+    std::vector<double> off(m.vertices.size());
+    for (std::size_t v = 0; v < off.size(); ++v) off[v] = distance(m.vertices[v], c) - r;
+    auto offset = [&](int v) { return off[static_cast<std::size_t>(v)]; };
     // Where segment a-b crosses the sphere: the root of |a + t (b - a) - c| = r in (0, 1).
     auto crossing = [&](int a, int b) {
       const Vec3 p = m.vertices[static_cast<std::size_t>(a)], d = m.vertices[static_cast<std::size_t>(b)] - p, f = p - c;
@@ -120,7 +159,7 @@ Mesh cut_along_spheres(const Mesh& mesh, const std::vector<Vec3>& centres, doubl
         if (1 - t < sb.first) sb = {1 - t, point_at(a, b, t)};
       }
     for (std::size_t v = 0; v < snap.size(); ++v)
-      if (snap[v].first < kSnap) m.vertices[v] = snap[v].second;
+      if (snap[v].first < kSnap) m.vertices[v] = snap[v].second, off[v] = distance(m.vertices[v], c) - r;
     // 2. Split the edges still crossing; each face keeps its orientation.
     auto side = [&](int v) {
       const double o = offset(v);
@@ -132,6 +171,7 @@ Mesh cut_along_spheres(const Mesh& mesh, const std::vector<Vec3>& centres, doubl
       const auto it = split.find(key);
       if (it != split.end()) return it->second;
       m.vertices.push_back(point_at(key.first, key.second, crossing(key.first, key.second)));
+      off.push_back(0.0);
       const int id = static_cast<int>(m.vertices.size()) - 1;
       split.emplace(key, id);
       return id;

@@ -45,6 +45,10 @@ std::vector<Vec3> vertex_normals(const Mesh& mesh);
 
 int nearest_vertex(const Mesh& mesh, const Vec3& p);
 
+// Closest point of the surface to p by visiting every face: for a handful of
+// queries, cheaper than building a ClosestPointIndex.
+Vec3 closest_point_brute_force(const Mesh& mesh, const Vec3& p);
+
 // The mesh cut along the spheres of radius r around each centre, so that the
 // vertices within r of a centre make a disk whose border lies on the circle
 // itself, not wherever the triangulation put its vertices: an edge crossing a

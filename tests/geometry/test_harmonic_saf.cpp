@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <random>
 #include <set>
 #include <limits>
 #include <map>
@@ -673,6 +674,19 @@ TEST(Saf, DisksCutIntoTheMeshAtTheirRadius) {
         const double db = ms::distance(cut.vertices[static_cast<std::size_t>(f[(e + 1) % 3])], c) - r;
         ASSERT_FALSE(da < -1e-9 && db > 1e-9) << "an edge still crosses the circle";
       }
+}
+
+TEST(MeshGeometry, BruteForceClosestPointMatchesTheTree) {
+  const auto& asy = asymmetric();
+  const ms::geometry::ClosestPointIndex index(asy.mesh);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int i = 0; i < 50; ++i) {
+    const Vec3& v = asy.mesh.vertices[static_cast<std::size_t>(rng() % asy.mesh.vertices.size())];
+    const Vec3 p{v[0] + 5 * u(rng), v[1] + 5 * u(rng), v[2] + 5 * u(rng)};
+    const Vec3 q = ms::geometry::closest_point_brute_force(asy.mesh, p);
+    EXPECT_NEAR(ms::distance(q, p), index.closest(p).distance, 1e-9);
+  }
 }
 
 TEST(Saf, ScoreDoesNotJumpWithTheDiskRadius) {
