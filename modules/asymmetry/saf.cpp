@@ -80,10 +80,7 @@ SafResult saf_on(const Mesh& mesh, const LandmarkSet& anchors, const Plane& plan
   }
   const geometry::ClosestPointIndex& index = *index_ptr;
   HarmonicFieldSolver& solver = *solver_ptr;
-  // Disk centres: the anchors projected onto the surface (the symmetric
-  // reference configuration lies off the surface where the mandible is asymmetric).
-  LandmarkSet lm;
-  for (const auto& [name, p] : anchors.points) lm.set(name, index.closest(p).point);
+  const LandmarkSet& lm = anchors;  // on the surface already (compute_saf projected them)
   r.disk_centres = lm;
   std::map<std::pair<std::string, std::string>, std::vector<Vec3>> grads;
   auto gradient = [&](const std::string& a, const std::string& b) -> const std::vector<Vec3>& {
@@ -324,7 +321,7 @@ SafResult compute_saf(const Mesh& mesh, const LandmarkSet& anchors, const Plane&
   if (r.per_vertex.size() > nv) r.per_vertex.resize(nv);
   const bool per_face = opt.smoothing_mm <= 0;
   std::vector<int> largest(nf, -1);
-  if (per_face) {
+  if (per_face && !r.fields.empty()) {
     const auto area = geometry::face_areas(cut);
     for (std::size_t f = 0; f < cut.faces.size(); ++f) {
       int& l = largest[static_cast<std::size_t>(parent[f])];

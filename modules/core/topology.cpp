@@ -157,21 +157,23 @@ std::size_t keep_closing_plugs(std::vector<std::uint8_t>& closed, const std::vec
     if (closed[v] && !original[v]) added.push_back(v), state[v] = kAdded | kQueued;
   if (added.empty()) return 0;
   const std::vector<BallOffset> depth_ball = ball_offsets(spacing, radius_mm);
-  using Entry = std::pair<float, std::size_t>;  // (squared depth, voxel): deepest first
-  std::vector<Entry> start(added.size());
+  std::vector<float> depth(added.size());
 #pragma omp parallel for schedule(static)
   for (long a = 0; a < static_cast<long>(added.size()); ++a) {
-    const std::size_t v = added[static_cast<std::size_t>(a)];
-    const auto [i, j, k] = ijk(v);
-    start[static_cast<std::size_t>(a)] = {nearest_in_ball(depth_ball, dims, i, j, k, [&](std::size_t u) { return original[u] != 0; }), v};
+    const auto [i, j, k] = ijk(added[static_cast<std::size_t>(a)]);
+    depth[static_cast<std::size_t>(a)] = nearest_in_ball(depth_ball, dims, i, j, k, [&](std::size_t u) { return original[u] != 0; });
   }
   lap("plugs: depth");
 
   // Homotopic thinning: a voxel that is not simple when its turn comes is
-  // queued again when a neighbour goes.
+  // queued again when a neighbour goes. Entries are (squared depth, index in
+  // `added`, which is in voxel order): deepest first, ties by voxel.
+  using Entry = std::pair<float, std::size_t>;
+  std::vector<Entry> start(added.size());
+  for (std::size_t a = 0; a < added.size(); ++a) start[a] = {depth[a], a};
   std::priority_queue<Entry> queue(std::less<Entry>(), std::move(start));
   while (!queue.empty()) {
-    const auto [d2, v] = queue.top();
+    const std::size_t v = added[queue.top().second];
     queue.pop();
     state[v] &= static_cast<std::uint8_t>(~kQueued);
     const auto [i, j, k] = ijk(v);
@@ -188,8 +190,8 @@ std::size_t keep_closing_plugs(std::vector<std::uint8_t>& closed, const std::vec
           const std::size_t u = static_cast<std::size_t>(X) + dx * static_cast<std::size_t>(Y) + dxy * static_cast<std::size_t>(Z);
           if ((state[u] & kAdded) && closed[u] && !(state[u] & kQueued)) {
             state[u] |= kQueued;
-            const auto [a, b, c] = ijk(u);
-            queue.emplace(nearest_in_ball(depth_ball, dims, a, b, c, [&](std::size_t w) { return original[w] != 0; }), u);
+            const std::size_t a = static_cast<std::size_t>(std::lower_bound(added.begin(), added.end(), u) - added.begin());
+            queue.emplace(depth[a], a);
           }
         }
   }
@@ -201,7 +203,7 @@ std::size_t keep_closing_plugs(std::vector<std::uint8_t>& closed, const std::vec
   std::vector<std::uint8_t> plug(n, 0);
   for (std::size_t v : added) plug[v] = closed[v];
   const std::vector<BallOffset> thick_ball = ball_offsets(spacing, thicken_mm);
-  std::vector<Entry> shell;
+  std::vector<Entry> shell;  // (squared distance to the plug, voxel)
   for (std::size_t v : added) {
     if (closed[v]) continue;
     const auto [i, j, k] = ijk(v);

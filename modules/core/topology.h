@@ -34,8 +34,9 @@ bool is_simple_point(const std::uint8_t* mask, const Dims3& dims, std::size_t i,
 // crease. The plugs are then thickened by the removed voxels within
 // thicken_mm of them that are simple to add back (a one-voxel sheet would not
 // survive smoothing; the topology stays the closing's). In place on
-// `closed`; returns the number of added voxels kept. Works on the added
-// voxels' bounding box; outside the grid counts as background.
+// `closed`; returns the number of added voxels kept. Cost follows the added
+// voxels, not the grid (their depths are searched in a ball around each);
+// outside the grid counts as background.
 std::size_t keep_closing_plugs(std::vector<std::uint8_t>& closed, const std::vector<std::uint8_t>& original,
                                const Dims3& dims, const std::array<double, 3>& spacing, double radius_mm,
                                double thicken_mm);
