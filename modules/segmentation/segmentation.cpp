@@ -62,6 +62,9 @@ using FloatImage = itk::Image<float, 3>;
 // condyle head or a crown is under a tenth of it).
 constexpr double kSecondBoneFraction = 0.2;
 
+// Depth (mm) at which the watershed landscape's depth term saturates.
+constexpr float kLandscapeDepthMm = 4.0f;
+
 // MANDISYM_DEBUG_SEG=1: time of each step on stderr (profiling aid).
 struct SegLap : DebugLap {
   SegLap() : DebugLap("MANDISYM_DEBUG_SEG", "seg") {}
@@ -359,7 +362,7 @@ struct Separated {
 // region; repeated until nothing joins (a fragment of a fragment).
 static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, const MaskImage::PixelType* bone,
                                             const Geometry& g, unsigned n, unsigned mand, std::size_t max_voxels,
-                                            const std::array<bool, 6>& cut) {
+                                            double max_fraction, const std::array<bool, 6>& cut) {
   std::vector<bool> joined(n + 1, false);
   // Regions with bone on a cut face of the grid are parts of larger bones.
   std::vector<bool> on_cut(n + 1, false);
@@ -393,10 +396,14 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
           if (bone[q] && c != 0 && c != a && c <= n) ++contact[std::minmax(a, c)];
         }
       }
+  // A process is a fraction of the mandible, whatever the mandible's size:
+  // the limit grows with the mandible's own region (a coronoid process cut
+  // off by the core depth was 4.4 cm3 of a 75 cm3 region).
+  const std::size_t limit = std::max(max_voxels, static_cast<std::size_t>(max_fraction * static_cast<double>(size[mand])));
   for (bool changed = true; changed;) {
     changed = false;
     for (unsigned l = 1; l <= n; ++l) {
-      if (joined[l] || on_cut[l] || size[l] == 0 || size[l] > max_voxels) continue;
+      if (joined[l] || on_cut[l] || size[l] == 0 || size[l] > limit) continue;
       std::size_t with_mandible = 0, best_other = 0;
       std::map<unsigned, std::size_t> others;
       for (const auto& [key, cnt] : contact) {
@@ -490,7 +497,13 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
           in_located[cg.linear(i, j, static_cast<std::size_t>(k))] =
               set_near(*ctx.located, cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
   }
-  auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
+  // Depths are only compared with thresholds up to the deepest core tried
+  // (r_max) and the watershed landscape's cap: the maps need be exact no
+  // deeper (one voxel more for safety), which lets the transform look only
+  // that far along each axis.
+  const double r_max = std::max(rsep, 3.0) + 1e-9;
+  const float depth_cap = static_cast<float>(std::max(r_max, double(kLandscapeDepthMm)) + max_spacing);
+  auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing, depth_cap); };
   auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
     auto* c = core->GetBufferPointer();
@@ -604,7 +617,6 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       if (pending.height > tallest_any.height) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.height};
       if (!two_bones && pending.height > best_height + 1.0) adopt(pending);
     };
-    const double r_max = std::max(rsep, 3.0) + 1e-9;
     for (double rr = rsep; rr <= r_max; rr += 0.5) {
       Trial t;
       t.rr = rr;
@@ -633,8 +645,9 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   lap("cores");
   if (lap.on())
     for (unsigned l = 1; l <= n_markers; ++l)
-      std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
-                   feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], l == mand ? "  <- mandible" : "");
+      std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f (z %.1f to %.1f)%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
+                   feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], feats[l].lo[2], feats[l].hi[2],
+                   l == mand ? "  <- mandible" : "");
 
   std::vector<std::uint8_t> crop_mask(cg.voxel_count(), 0);
   if (mand == 0) {
@@ -671,7 +684,9 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       const auto* b = bone->GetBufferPointer();
       const float hu0 = static_cast<float>(offset);
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        landscape[i] = b[i] ? -std::min(bone_depth[i], 4.0f) / 4.0f - std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f : 0.0f;
+        landscape[i] = b[i] ? -std::min(bone_depth[i], kLandscapeDepthMm) / kLandscapeDepthMm -
+                                  std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f
+                            : 0.0f;
     }
     // Markers from the dense-bone solid flood it first, then the rest of the
     // bone: a joint space bridged by partial volume (above the bone threshold,
@@ -702,7 +717,8 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     // teeth (OpenKBP pt_246: Dice 0.79 -> 0.77 with them joined).
     const bool fine_scan = native_max_spacing <= opt.max_working_spacing_mm;
     const std::vector<bool> joined =
-        fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3), crop_cut)
+        fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3),
+                                       opt.fragment_merge_fraction, crop_cut)
                   : [&] { std::vector<bool> j(n_markers + 1, false); j[mand] = true; return j; }();
     auto in_mandible = [&](LabelImage::PixelType l) { return l != 0 && joined[l]; };
     lap("fragments");

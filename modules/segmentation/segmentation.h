@@ -41,10 +41,14 @@ struct Options {
   // more than any other region are joined to it: tooth crowns or thin
   // processes whose neck the core depth cut off (docs/segmentation.md).
   double fragment_merge_cm3 = 4.0;
+  // ... or up to this fraction of the mandible's own region, if larger.
+  double fragment_merge_fraction = 0.1;
   // Beyond the band around the mandible's core, thick parts of its region are
-  // kept up to this distance (mm) from the core: about a molar crown's height,
-  // for crowns whose thin dense shell left no core (docs/segmentation.md).
-  double thick_reach_mm = 8.0;
+  // kept up to this distance (mm) from the core: crowns whose thin dense shell
+  // left no core, and the thin ramus plate and processes when the deeper cores
+  // of teeth in occlusion leave little core in the ramus (8 mm, a crown's
+  // height, cut a condylar process off; docs/segmentation.md).
+  double thick_reach_mm = 20.0;
 };
 
 struct Result {

@@ -130,6 +130,35 @@ double mean_surface_distance(const Mask& a, const Mask& b) {
   return sum / static_cast<double>(ma.vertices.size() + mb.vertices.size());
 }
 
+// Number of face-connected pieces of a mask (flood fill).
+std::size_t face_connected_components(const Mask& m) {
+  const auto& d = m.geom.size;
+  std::vector<std::uint8_t> seen(m.data.size(), 0);
+  std::vector<std::size_t> stack;
+  std::size_t pieces = 0;
+  for (std::size_t s = 0; s < m.data.size(); ++s) {
+    if (!m.data[s] || seen[s]) continue;
+    ++pieces;
+    seen[s] = 1;
+    stack.push_back(s);
+    while (!stack.empty()) {
+      const std::size_t c = stack.back();
+      stack.pop_back();
+      const std::size_t i = c % d[0], j = (c / d[0]) % d[1], k = c / (d[0] * d[1]);
+      auto visit = [&](bool inside, std::size_t q) {
+        if (inside && m.data[q] && !seen[q]) seen[q] = 1, stack.push_back(q);
+      };
+      visit(i > 0, c - 1);
+      visit(i + 1 < d[0], c + 1);
+      visit(j > 0, c - d[0]);
+      visit(j + 1 < d[1], c + d[0]);
+      visit(k > 0, c - d[0] * d[1]);
+      visit(k + 1 < d[2], c + d[0] * d[1]);
+    }
+  }
+  return pieces;
+}
+
 // A jaw-region phantom (150 x 140 x 130 mm field of view).
 phantom::Phantom jaw_phantom(double spacing, double gap, double joint, std::uint64_t seed, bool metal = false, double yaw = 0) {
   phantom::PhantomParams p;
@@ -184,8 +213,8 @@ INSTANTIATE_TEST_SUITE_P(
 
 // Teeth in occlusion (gap 0), 0.8 mm voxels: separated by deeper cores, below
 // the 0.97 target (issue C is open: the lower crowns, stacked flat on the upper
-// ones, go to the maxilla); guards the level reached, 0.958 at both joint
-// spaces. With a 1 mm joint space this used to fail outright: at a shallow
+// ones, go to the maxilla); guards the level reached, 0.963 at both joint
+// spaces (0.958 while thick parts were kept only within 8 mm of the core). With a 1 mm joint space this used to fail outright: at a shallow
 // core depth the maxilla's and the mandible's cores are one (welded through
 // the crowns), and that core, reaching from the chin to the upper jaw, was
 // the tallest candidate (Dice 0.62 and 172 cm3 with seed 1); one depth step
@@ -199,13 +228,38 @@ TEST_P(TeethInOcclusion, AreSeparatedWithoutTheMaxilla) {
   const auto r = segmentation::segment_mandible(ph.ct);
   const double d = ms::testing::dice(r.mask, ph.mandible);
   RecordProperty("dice", std::to_string(d));
-  EXPECT_GE(d, 0.95);
+  EXPECT_GE(d, 0.96);
   EXPECT_GT(r.separation_radius_mm, 1.0);  // needed deeper cores than the default
   EXPECT_LT(static_cast<double>(r.voxels), 1.02 * static_cast<double>(ph.mandible.count()));  // no maxilla
 }
 
 INSTANTIATE_TEST_SUITE_P(AutoSegmentation, TeethInOcclusion, ::testing::Values(2.5, 1.0),
                          [](const ::testing::TestParamInfo<double>& i) { return i.param == 1.0 ? std::string("joint1mm") : std::string("joint2_5mm"); });
+
+// Teeth in occlusion under pose (yaw -12, roll 10; joint space 1 mm): the
+// deeper cores occlusion needs leave the ramus plate's core thin, and two
+// things cut the left condylar process off. Its own core floods a 4.4 cm3
+// region, over the 4 cm3 a fragment could have (now also up to a tenth of the
+// mandible's region): Dice 0.937. And the posterior ramus, more than 8 mm from
+// any core, was dropped as if it were a streak, leaving the process a separate
+// piece (the surface then kept only the rest: SAF score 0.13 for a symmetric
+// jaw, Cr_L missing): Dice 0.949, two components. Now 0.963, one piece.
+TEST(AutoSegmentation, CondylarProcessSurvivesOcclusionUnderPose) {
+  phantom::PhantomParams p;
+  p.spacing = {0.8, 0.8, 0.8};
+  p.fov_mm = {150, 150, 140};
+  p.occlusal_gap_mm = 0;
+  p.joint_space_mm = 1;
+  p.yaw_deg = -12;
+  p.roll_deg = 10;
+  p.seed = 1;
+  const auto ph = phantom::generate(p);
+  const auto r = segmentation::segment_mandible(ph.ct);
+  const double d = ms::testing::dice(r.mask, ph.mandible);
+  RecordProperty("dice", std::to_string(d));
+  EXPECT_GE(d, 0.96);
+  EXPECT_EQ(face_connected_components(r.mask), 1u);
+}
 
 // Under pose, a molar crown's thin dense shell can leave no core near it, and
 // a crown whose neck the core depth cut becomes a marker of its own: both were
