@@ -497,13 +497,8 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
           in_located[cg.linear(i, j, static_cast<std::size_t>(k))] =
               set_near(*ctx.located, cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
   }
-  // Depths are only compared with thresholds up to the deepest core tried
-  // (r_max) and the watershed landscape's cap: the maps need be exact no
-  // deeper (one voxel more for safety), which lets the transform look only
-  // that far along each axis.
-  const double r_max = std::max(rsep, 3.0) + 1e-9;
-  const float depth_cap = static_cast<float>(std::max(r_max, double(kLandscapeDepthMm)) + max_spacing);
-  auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing, depth_cap); };
+  const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
+  auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
   auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
     auto* c = core->GetBufferPointer();
