@@ -160,7 +160,8 @@ std::vector<float> squared_distance_transform(const std::uint8_t* feature, const
   return d;
 }
 
-std::vector<float> depth_inside(const std::uint8_t* mask, const Dims3& dims, const std::array<double, 3>& spacing) {
+std::vector<float> depth_inside(const std::uint8_t* mask, const Dims3& dims, const std::array<double, 3>& spacing,
+                                float max_depth) {
   const long nx = static_cast<long>(dims[0]), ny = static_cast<long>(dims[1]), nz = static_cast<long>(dims[2]);
   std::vector<std::uint8_t> contour(dims[0] * dims[1] * dims[2], 0);
 #pragma omp parallel for schedule(static)
@@ -179,7 +180,8 @@ std::vector<float> depth_inside(const std::uint8_t* mask, const Dims3& dims, con
               }
         contour[c] = edge;
       }
-  std::vector<float> d = squared_distance_transform(contour.data(), dims, spacing);
+  std::vector<float> d =
+      squared_distance_transform(contour.data(), dims, spacing, max_depth < kNoFeature ? max_depth * max_depth : kNoFeature);
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < static_cast<long>(d.size()); ++i) {
     float& v = d[static_cast<std::size_t>(i)];

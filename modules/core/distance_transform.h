@@ -32,8 +32,12 @@ std::vector<float> squared_distance_transform(const std::uint8_t* feature, const
 // the distance (units of spacing) from each object voxel to the nearest voxel
 // of the object's contour (object voxels with a background voxel among their
 // 26 neighbours inside the grid: the grid's faces are not a contour); 0 for
-// contour and background voxels.
-std::vector<float> depth_inside(const std::uint8_t* mask, const Dims3& dims, const std::array<double, 3>& spacing);
+// contour and background voxels. Depths up to max_depth are exact; deeper
+// voxels come out deeper than max_depth but not exact (callers that only
+// compare depths with thresholds up to max_depth pass it: the transform then
+// looks only that far along each axis).
+std::vector<float> depth_inside(const std::uint8_t* mask, const Dims3& dims, const std::array<double, 3>& spacing,
+                                float max_depth = kNoFeature);
 
 // Binary morphology with the ball ITK's BinaryBallStructuringElement builds
 // for a per-axis radius r (voxel offsets o with sum (o_a / (r_a + 0.5))^2 <= 1;

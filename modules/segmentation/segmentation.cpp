@@ -489,13 +489,25 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   const double min_located = ctx.located ? 1.0 - opt.locate_outside_fraction : 0.0;
   if (ctx.located) {
     in_located.assign(cg.voxel_count(), 0);
+    // Crop index -> located-grid index is affine: its origin and one step per axis.
+    const Mask& loc = *ctx.located;
+    auto to_loc = [&](double i, double j, double k) { return loc.geom.lps_to_index(cg.index_to_lps(i, j, k)); };
+    const Vec3 q0 = to_loc(0, 0, 0);
+    const Vec3 qi = to_loc(1, 0, 0) - q0, qj = to_loc(0, 1, 0) - q0, qk = to_loc(0, 0, 1) - q0;
+    const long lx = static_cast<long>(loc.geom.size[0]), ly = static_cast<long>(loc.geom.size[1]), lz = static_cast<long>(loc.geom.size[2]);
     const long nz = static_cast<long>(cdims[2]);
 #pragma omp parallel for schedule(static)
     for (long k = 0; k < nz; ++k)
-      for (std::size_t j = 0; j < cdims[1]; ++j)
-        for (std::size_t i = 0; i < cdims[0]; ++i)
+      for (std::size_t j = 0; j < cdims[1]; ++j) {
+        const Vec3 row = q0 + static_cast<double>(j) * qj + static_cast<double>(k) * qk;
+        for (std::size_t i = 0; i < cdims[0]; ++i) {
+          const Vec3 q = row + static_cast<double>(i) * qi;
+          const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
           in_located[cg.linear(i, j, static_cast<std::size_t>(k))] =
-              set_near(*ctx.located, cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+              x >= 0 && y >= 0 && z >= 0 && x < lx && y < ly && z < lz &&
+              loc.data[loc.geom.linear(static_cast<std::size_t>(x), static_cast<std::size_t>(y), static_cast<std::size_t>(z))] != 0;
+        }
+      }
   }
   const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
   auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
@@ -545,13 +557,16 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     ccav->SetInput(cavity);
     ccav->FullyConnectedOff();
     ccav->Update();
-    const std::vector<float> cdepth = depth_of(cavity.GetPointer());
+    // Only whether a cavity reaches `thick` deep matters: its depth map
+    // needs to be exact no deeper (the transform then looks that far only).
+    const float thick = static_cast<float>(std::max(1.0, 0.75 * max_spacing));
+    const std::vector<float> cdepth =
+        depth_inside(cavity->GetBufferPointer(), cdims, cg.spacing, thick + static_cast<float>(max_spacing));
     const auto* cl = ccav->GetOutput()->GetBufferPointer();
     const float* cd = cdepth.data();
     std::vector<float> depth(ccav->GetObjectCount() + 1, 0.0f);
     for (std::size_t i = 0; i < cg.voxel_count(); ++i)
       if (cl[i]) depth[cl[i]] = std::max(depth[cl[i]], cd[i]);
-    const float thick = static_cast<float>(std::max(1.0, 0.75 * max_spacing));
     dense_solid = io::make_image<MaskImage>(cg);
     auto* ds = dense_solid->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) ds[i] = dn[i] || (cl[i] && depth[cl[i]] >= thick);

@@ -201,3 +201,27 @@ TEST(DistanceTransform, BallMorphologyEqualsBruteForce) {
 }
 
 }  // namespace
+
+// Truncated: exact up to max_depth, deeper than max_depth beyond it (the
+// segmentation compares depths with thresholds up to its cap only).
+TEST(DistanceTransform, TruncatedDepthIsExactUpToItsCap) {
+  auto m = blobs(kDims, 3, 0.5f);
+  each(kDims, [&](long i, long j, long k, std::size_t c) {
+    const double x = (i - 9) / 7.0, y = (j - 7) / 6.0, z = (k - 6) / 5.0;
+    if (x * x + y * y + z * z <= 1) m[c] = 1;
+  });
+  const auto full = ms::depth_inside(m.data(), kDims, kSpacing);
+  for (float cap : {0.7f, 1.3f, 2.0f}) {
+    const auto cut = ms::depth_inside(m.data(), kDims, kSpacing, cap);
+    std::size_t beyond = 0;
+    for (std::size_t c = 0; c < full.size(); ++c) {
+      if (full[c] <= cap) {
+        ASSERT_NEAR(cut[c], full[c], 1e-5f) << c << " cap " << cap;  // the two paths round differently
+      } else {
+        ASSERT_GT(cut[c], cap) << c << " cap " << cap;
+        ++beyond;
+      }
+    }
+    EXPECT_GT(beyond, 0u) << cap;  // some voxels lie deeper than the cap: the test measures something
+  }
+}
