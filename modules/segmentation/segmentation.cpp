@@ -337,13 +337,15 @@ struct GridContext {
   const Mask* located = nullptr;
 };
 
-// Whether the voxel of mask m nearest to LPS point p is set (false outside m's grid).
-static bool set_near(const Mask& m, const Vec3& p) {
-  const Vec3 q = m.geom.lps_to_index(p);
+// Whether the voxel of mask m nearest to (continuous) index q is set (false outside m's grid).
+static bool set_at_index(const Mask& m, const Vec3& q) {
   const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
   return x >= 0 && y >= 0 && z >= 0 && x < long(m.geom.size[0]) && y < long(m.geom.size[1]) && z < long(m.geom.size[2]) &&
          m.data[m.geom.linear(static_cast<std::size_t>(x), static_cast<std::size_t>(y), static_cast<std::size_t>(z))] != 0;
 }
+
+// Whether the voxel of mask m nearest to LPS point p is set (false outside m's grid).
+static bool set_near(const Mask& m, const Vec3& p) { return set_at_index(m, m.geom.lps_to_index(p)); }
 
 // Steps 1-5 of docs/segmentation.md on one grid: the mandible's region and the
 // other bones' regions (watershed), on the bone bounding box.
@@ -494,22 +496,15 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     auto to_loc = [&](double i, double j, double k) { return loc.geom.lps_to_index(cg.index_to_lps(i, j, k)); };
     const Vec3 q0 = to_loc(0, 0, 0);
     const Vec3 qi = to_loc(1, 0, 0) - q0, qj = to_loc(0, 1, 0) - q0, qk = to_loc(0, 0, 1) - q0;
-    const long lx = static_cast<long>(loc.geom.size[0]), ly = static_cast<long>(loc.geom.size[1]), lz = static_cast<long>(loc.geom.size[2]);
     const long nz = static_cast<long>(cdims[2]);
 #pragma omp parallel for schedule(static)
     for (long k = 0; k < nz; ++k)
       for (std::size_t j = 0; j < cdims[1]; ++j) {
         const Vec3 row = q0 + static_cast<double>(j) * qj + static_cast<double>(k) * qk;
-        for (std::size_t i = 0; i < cdims[0]; ++i) {
-          const Vec3 q = row + static_cast<double>(i) * qi;
-          const long x = std::lround(q[0]), y = std::lround(q[1]), z = std::lround(q[2]);
-          in_located[cg.linear(i, j, static_cast<std::size_t>(k))] =
-              x >= 0 && y >= 0 && z >= 0 && x < lx && y < ly && z < lz &&
-              loc.data[loc.geom.linear(static_cast<std::size_t>(x), static_cast<std::size_t>(y), static_cast<std::size_t>(z))] != 0;
-        }
+        for (std::size_t i = 0; i < cdims[0]; ++i)
+          in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = set_at_index(loc, row + static_cast<double>(i) * qi);
       }
   }
-  const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
   auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
   auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
@@ -627,6 +622,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       if (pending.height > tallest_any.height) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.height};
       if (!two_bones && pending.height > best_height + 1.0) adopt(pending);
     };
+    const double r_max = std::max(rsep, 3.0) + 1e-9;
     for (double rr = rsep; rr <= r_max; rr += 0.5) {
       Trial t;
       t.rr = rr;

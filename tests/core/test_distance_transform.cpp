@@ -115,13 +115,19 @@ TEST(DistanceTransform, TruncatedDistanceIsExactUpToItsBound) {
   }
 }
 
-TEST(DistanceTransform, DepthInsideIsTheDistanceToTheContour) {
-  // Blobs and an ellipsoid cut by the top face.
+// Blobs and an ellipsoid (semi-axes 7 x 6 x 5 voxels) centred at voxel
+// (9, 7, zc): at zc = 10 the grid's top face cuts it.
+std::vector<std::uint8_t> blobs_and_ellipsoid(double zc) {
   auto m = blobs(kDims, 3, 0.5f);
   each(kDims, [&](long i, long j, long k, std::size_t c) {
-    const double x = (i - 9) / 7.0, y = (j - 7) / 6.0, z = (k - 10) / 5.0;
+    const double x = (i - 9) / 7.0, y = (j - 7) / 6.0, z = (k - zc) / 5.0;
     if (x * x + y * y + z * z <= 1) m[c] = 1;
   });
+  return m;
+}
+
+TEST(DistanceTransform, DepthInsideIsTheDistanceToTheContour) {
+  const auto m = blobs_and_ellipsoid(10);  // cut by the top face
   const auto depth = ms::depth_inside(m.data(), kDims, kSpacing);
   auto contour = [&](long i, long j, long k) {
     for (long z = k - 1; z <= k + 1; ++z)
@@ -200,16 +206,10 @@ TEST(DistanceTransform, BallMorphologyEqualsBruteForce) {
   }
 }
 
-}  // namespace
-
 // Truncated: exact up to max_depth, deeper than max_depth beyond it (the
-// segmentation compares depths with thresholds up to its cap only).
+// segmentation compares a cavity's depth with one threshold below its cap).
 TEST(DistanceTransform, TruncatedDepthIsExactUpToItsCap) {
-  auto m = blobs(kDims, 3, 0.5f);
-  each(kDims, [&](long i, long j, long k, std::size_t c) {
-    const double x = (i - 9) / 7.0, y = (j - 7) / 6.0, z = (k - 6) / 5.0;
-    if (x * x + y * y + z * z <= 1) m[c] = 1;
-  });
+  const auto m = blobs_and_ellipsoid(6);
   const auto full = ms::depth_inside(m.data(), kDims, kSpacing);
   for (float cap : {0.7f, 1.3f, 2.0f}) {
     const auto cut = ms::depth_inside(m.data(), kDims, kSpacing, cap);
@@ -225,3 +225,5 @@ TEST(DistanceTransform, TruncatedDepthIsExactUpToItsCap) {
     EXPECT_GT(beyond, 0u) << cap;  // some voxels lie deeper than the cap: the test measures something
   }
 }
+
+}  // namespace

@@ -214,7 +214,8 @@ INSTANTIATE_TEST_SUITE_P(
 // Teeth in occlusion (gap 0), 0.8 mm voxels: separated by deeper cores, below
 // the 0.97 target (issue C is open: the lower crowns, stacked flat on the upper
 // ones, go to the maxilla); guards the level reached, 0.963 at both joint
-// spaces (0.958 while thick parts were kept only within 8 mm of the core). With a 1 mm joint space this used to fail outright: at a shallow
+// spaces (0.958 before the thick reach and the fragment limit were raised,
+// docs/segmentation.md). With a 1 mm joint space this used to fail outright: at a shallow
 // core depth the maxilla's and the mandible's cores are one (welded through
 // the crowns), and that core, reaching from the chin to the upper jaw, was
 // the tallest candidate (Dice 0.62 and 172 cm3 with seed 1); one depth step
