@@ -31,10 +31,12 @@ reference::CranialResult fit_cranial_plane(const CranialInputs& in) {
     if (cranium.volume_cm3 >= 50) {
       // The contour as it comes: only the mirror-ICP reads it (a sample of
       // its vertices and closest points), so neither decimation (seconds on
-      // a head's cranium at 1 mm) nor remeshing is needed.
+      // a head's cranium at 1 mm) nor remeshing nor holding vertices to
+      // the mask is needed.
       surface::Options mo;
       mo.target_edge_mm = 0;
       mo.target_faces = 0;
+      mo.max_boundary_distance_voxels = 0;
       mesh = surface::mesh_from_mask(cranium.mask, mo).mesh;
     }
     return reference::cranial_plane(mesh, cranium.volume_cm3, in.mandible_plane, in.landmarks);

@@ -272,6 +272,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.closing_mm = surf.closing_mm;
     S.genus_before_closing = surf.genus_before_closing;
     S.closing_plugs_only = surf.closing_plugs_only;
+    S.vertices_pulled = surf.vertices_pulled;
     if (surf.genus_before_closing > 0 && surf.closing_mm > 0)
       S.warnings.push_back("surface: " + std::to_string(surf.genus_before_closing) + " handle(s) (e.g. teeth in contact) removed by " +
                            (surf.closing_plugs_only ? "plugs from a " : "a ") + num(surf.closing_mm) +

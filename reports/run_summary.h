@@ -34,6 +34,7 @@ struct RunSummary {
   double closing_mm = 0;          // closing before meshing (0 = none)
   int genus_before_closing = -1;  // genus of the unclosed surface when automatic closing ran
   bool closing_plugs_only = false;  // the closing was kept only where it removed handles
+  std::size_t vertices_pulled = 0;  // vertices held to one voxel of the mask's boundary (surface.md)
   landmarks::Result landmarks;
   landmarks::PalatalPlane palate;  // the head's superior direction (found = false: the scan's +S was used)
   Vec3 head_superior() const { return palate.found ? palate.superior : Vec3{0, 0, 1}; }

@@ -165,6 +165,7 @@ json::Value results_json(const RunSummary& s) {
   mesh["closing_mm"] = s.closing_mm;
   mesh["closing_scope"] = s.closing_mm <= 0 ? "none" : s.closing_plugs_only ? "handles" : "everywhere";
   mesh["genus_before_closing"] = s.genus_before_closing >= 0 ? Value(s.genus_before_closing) : Value();
+  mesh["vertices_pulled_to_mask"] = s.vertices_pulled;
 
   auto& lm = root["landmarks"];
   lm = Value::object();

@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 #include <vector>
 
@@ -127,12 +128,15 @@ static void finish(Result& r, const Options& opt) {
 // Closing of a 0/1 float image by a ball of radius r mm (core/distance_transform);
 // plugs_only keeps only what changes its topology (core/topology), thickened
 // to a millimetre (at least a voxel) so that the smoothing keeps them whole.
-static void close_binary(float* buf, const int dims[3], const double spacing[3], double r, bool plugs_only) {
+// Returns the number of voxels it added.
+static std::size_t close_binary(float* buf, const int dims[3], const double spacing[3], double r, bool plugs_only) {
   const Dims3 d{static_cast<std::size_t>(dims[0]), static_cast<std::size_t>(dims[1]), static_cast<std::size_t>(dims[2])};
   const long n = static_cast<long>(d[0] * d[1] * d[2]);
   std::vector<std::uint8_t> m(static_cast<std::size_t>(n));
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < n; ++i) m[static_cast<std::size_t>(i)] = buf[i] > 0.5f;
+  const auto ones = [&] { return static_cast<std::size_t>(std::count(m.begin(), m.end(), std::uint8_t{1})); };
+  const std::size_t before = ones();
   const std::array<double, 3> s{spacing[0], spacing[1], spacing[2]};
   if (plugs_only) {
     const std::vector<std::uint8_t> original = m;
@@ -143,6 +147,7 @@ static void close_binary(float* buf, const int dims[3], const double spacing[3],
   }
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < n; ++i) buf[i] = m[static_cast<std::size_t>(i)] ? 1.0f : 0.0f;
+  return ones() - before;  // a closing only adds
 }
 
 // Bins per axis for contouring (Options::max_contour_spacing_mm): the most
@@ -197,14 +202,18 @@ static vtkSmartPointer<vtkImageData> binned(vtkImageData* img, const std::array<
 // Flying-edges surface of a mask (after the optional closing), in index-space
 // millimetres of a crop starting pad voxels before index lo.
 struct Contour {
-  vtkSmartPointer<vtkPolyData> pd;
+  vtkSmartPointer<vtkPolyData> pd;  // null when skipped (contour(): unchanged_is_enough)
   std::array<long, 3> lo{0, 0, 0};
   long pad = 0;
+  std::array<long, 3> dims{0, 0, 0};
+  std::vector<std::uint8_t> solid;  // the 0/1 crop as contoured (after any closing, before guiding)
+  std::size_t closing_added = 0;    // voxels the closing added
 };
 
 // Index bounding box of a mask's voxels (hi[0] < 0 when empty); slices in
 // parallel (a 512 x 512 x 300 mask is 78 M voxels to look at).
-static std::pair<std::array<long, 3>, std::array<long, 3>> mask_box(const Mask& mask) {
+using Box = std::pair<std::array<long, 3>, std::array<long, 3>>;
+static Box mask_box(const Mask& mask) {
   const Geometry& g = mask.geom;
   const long nx = static_cast<long>(g.size[0]), ny = static_cast<long>(g.size[1]), nz = static_cast<long>(g.size[2]);
   std::vector<std::array<long, 4>> slice(static_cast<std::size_t>(nz), {nx, -1, ny, -1});  // x lo, x hi, y lo, y hi
@@ -269,12 +278,15 @@ static void guide_by_ct(float* buf, const int dims[3], const std::array<long, 3>
       }
 }
 
-static Contour contour(const Mask& mask, const Options& opt) {
+// unchanged_is_enough: when the closing added nothing, stop there (pd null):
+// the contour would be the unclosed one's.
+// box: mask_box(mask), found once for every contour of the mask.
+static Contour contour(const Mask& mask, const Box& box, const Options& opt, bool unchanged_is_enough = false) {
   SurfaceLap lap;
   const Geometry& g = mask.geom;
   // Crop to the mask's bounding box plus a margin of empty voxels so the
   // surface closes at the scan border.
-  const auto [lo, hi] = mask_box(mask);
+  const auto& [lo, hi] = box;
   if (hi[0] < 0) throw Error(ExitCode::GeometryFailed, "mandible mask is empty: no surface to build");
   const std::array<int, 3> f = contour_bins(g.spacing, opt);
   const long pad = 3 * std::max({f[0], f[1], f[2]}) +
@@ -297,8 +309,19 @@ static Contour contour(const Mask& mask, const Options& opt) {
   // Morphological closing by a ball of this radius (mm): fills the narrow
   // gaps that make handles, e.g. between teeth in contact.
   lap("crop");
-  if (opt.close_handles_mm > 0) close_binary(buf, dims, g.spacing.data(), opt.close_handles_mm, opt.closing_plugs_only);
+  Contour c;
+  c.lo = lo;
+  c.pad = pad;
+  c.dims = {dims[0], dims[1], dims[2]};
+  if (opt.close_handles_mm > 0)
+    c.closing_added = close_binary(buf, dims, g.spacing.data(), opt.close_handles_mm, opt.closing_plugs_only);
   lap("closing");
+  if (unchanged_is_enough && c.closing_added == 0) return c;
+  if (opt.max_boundary_distance_voxels > 0) {
+    c.solid.resize(static_cast<std::size_t>(dims[0]) * dims[1] * dims[2]);
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < static_cast<long>(c.solid.size()); ++i) c.solid[static_cast<std::size_t>(i)] = buf[i] > 0.5f;
+  }
   if (opt.guide) guide_by_ct(buf, dims, lo, pad, *opt.guide, mask.geom, opt.guide_level_hu, opt.guide_soft_hu);
   // Fine masks: bin-average, then smooth by what the bins did not.
   std::array<double, 3> sigma_vox{};
@@ -328,7 +351,87 @@ static Contour contour(const Mask& mask, const Options& opt) {
   vtkSmartPointer<vtkPolyData> pd = clean->GetOutput();
   lap("smooth + flying edges");
   if (pd->GetNumberOfPolys() == 0) throw Error(ExitCode::GeometryFailed, "marching cubes produced no surface");
-  return {pd, lo, pad};
+  c.pd = pd;
+  return c;
+}
+
+// Nearest point to q (continuous index of the crop) on the boundary of
+// c.solid -- the voxel faces between a solid voxel and an empty one, the
+// crop's outside counting as empty -- among the solid voxels within r[a]
+// indices of q's voxel along each axis; distances in mm (spacing s along the
+// index axes: the direction matrix is a rotation). Returns the squared
+// distance (infinity when none is in reach) and the point in *nearest.
+static double nearest_on_boundary(const Contour& c, const Vec3& q, const Vec3& s, const std::array<long, 3>& r,
+                                  Vec3* nearest) {
+  auto solid = [&](long i, long j, long k) {
+    return i >= 0 && j >= 0 && k >= 0 && i < c.dims[0] && j < c.dims[1] && k < c.dims[2] &&
+           c.solid[static_cast<std::size_t>(i + c.dims[0] * (j + c.dims[1] * k))] != 0;
+  };
+  const long ci = std::lround(q[0]), cj = std::lround(q[1]), ck = std::lround(q[2]);
+  double best = std::numeric_limits<double>::infinity();
+  for (long k = ck - r[2]; k <= ck + r[2]; ++k)
+    for (long j = cj - r[1]; j <= cj + r[1]; ++j)
+      for (long i = ci - r[0]; i <= ci + r[0]; ++i) {
+        if (!solid(i, j, k)) continue;
+        const long v[3] = {i, j, k};
+        for (int a = 0; a < 3; ++a)
+          for (int sgn : {-1, 1}) {
+            long n[3] = {i, j, k};
+            n[a] += sgn;
+            if (solid(n[0], n[1], n[2])) continue;
+            Vec3 p;  // the face's point nearest q: q clamped to the face's square
+            for (int b = 0; b < 3; ++b)
+              p[b] = b == a ? static_cast<double>(v[b]) + 0.5 * sgn
+                            : std::clamp(q[b], static_cast<double>(v[b]) - 0.5, static_cast<double>(v[b]) + 0.5);
+            double d2 = 0;
+            for (int b = 0; b < 3; ++b) d2 += (q[b] - p[b]) * (q[b] - p[b]) * s[b] * s[b];
+            if (d2 < best) best = d2, *nearest = p;
+          }
+      }
+  return best;
+}
+
+// Pulls every vertex farther than opt.max_boundary_distance_voxels (x the
+// finest spacing) from the boundary of the contoured mask back to that
+// distance, straight towards its nearest boundary point. The Gaussian rounds
+// a cusp or a thin edge inwards by a fixed number of millimetres, which on a
+// fine grid can be more than a voxel (one vertex of 32 898 at 0.496 mm on a
+// 0.45 x 0.45 x 0.495 mm phantom mandible); the moves are that small, well
+// under an edge length, so the triangles around them keep their shape.
+static void hold_to_mask(Result& res, const Contour& c, const Geometry& g, const Options& opt) {
+  if (opt.max_boundary_distance_voxels <= 0 || c.solid.empty()) return;
+  SurfaceLap lap;
+  const Vec3& s = g.spacing;
+  const double tol = opt.max_boundary_distance_voxels * std::min({s[0], s[1], s[2]});
+  std::array<long, 3> reach{}, wide{};
+  for (int a = 0; a < 3; ++a) {
+    reach[a] = static_cast<long>(std::floor(tol / s[a])) + 1;  // every face within tol (see nearest_on_boundary)
+    wide[a] = reach[a] + static_cast<long>(std::ceil(3.0 / s[a]));  // a vertex up to 3 mm off: the nearest face
+  }
+  const Vec3 shift{static_cast<double>(c.pad - c.lo[0]), static_cast<double>(c.pad - c.lo[1]),
+                   static_cast<double>(c.pad - c.lo[2])};
+  std::size_t pulled = 0;
+  double largest = 0;
+  auto& verts = res.mesh.vertices;
+#pragma omp parallel for schedule(dynamic, 1024) reduction(+ : pulled) reduction(max : largest)
+  for (long i = 0; i < static_cast<long>(verts.size()); ++i) {
+    Vec3& v = verts[static_cast<std::size_t>(i)];
+    const Vec3 q = g.lps_to_index(v) + shift;
+    Vec3 p;
+    double d2 = nearest_on_boundary(c, q, s, reach, &p);
+    if (d2 <= tol * tol) continue;
+    d2 = nearest_on_boundary(c, q, s, wide, &p);
+    if (!std::isfinite(d2)) continue;  // nothing within reach: leave it
+    const double d = std::sqrt(d2), keep = tol * (1 - 1e-9) / d;
+    const Vec3 moved = p + keep * (q - p);
+    v = g.index_to_lps(moved[0] - shift[0], moved[1] - shift[1], moved[2] - shift[2]);
+    ++pulled;
+    largest = std::max(largest, d - tol);
+  }
+  res.vertices_pulled = pulled;
+  res.largest_pull_mm = largest;
+  if (pulled > 0) res.stats = measure(res.mesh);
+  lap("hold to the mask");
 }
 
 // The contour decimated to opt.target_faces, in LPS, measured (before CGAL repair).
@@ -363,11 +466,12 @@ static Result raw_mesh(const Contour& c, const Geometry& g, const Options& opt, 
 
 Result mesh_from_mask(const Mask& mask, const Options& opt) {
   const Geometry& g = mask.geom;
+  const Box box = mask_box(mask);
   // Automatic closing: the topology is decided on the undecimated contours
   // (the mask's own topology; decimating costs five times the contouring);
   // only the chosen one is decimated, repaired and remeshed.
   if (opt.close_handles_auto && opt.close_handles_mm <= 0) {
-    const Contour open = contour(mask, opt);
+    const Contour open = contour(mask, box, opt);
     const int genus = raw_mesh(open, g, opt, false).stats.genus;
     if (genus > 0) {
       const double finest = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
@@ -380,12 +484,14 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
           Options o = opt;
           o.close_handles_mm = radius;
           o.closing_plugs_only = plugs_only;
-          const Contour cc = contour(mask, o);
+          const Contour cc = contour(mask, box, o, true);
+          if (!cc.pd) continue;  // the closing added nothing: the unclosed surface's genus
           if (raw_mesh(cc, g, o, false).stats.genus != 0) continue;
           Result c = raw_mesh(cc, g, o);
           if (c.stats.genus != 0) continue;  // decimation made a handle: try the next
           finish(c, o);
           if (c.stats.genus != 0) continue;  // repair changed the topology: try the next
+          hold_to_mask(c, cc, g, o);
           c.closing_mm = radius;
           c.closing_plugs_only = plugs_only;
           c.genus_before_closing = genus;
@@ -395,11 +501,14 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
     Result r = raw_mesh(open, g, opt);
     if (genus > 0) r.genus_before_closing = genus;
     finish(r, opt);
+    hold_to_mask(r, open, g, opt);
     return r;
   }
-  Result r = raw_mesh(contour(mask, opt), g, opt);
+  const Contour c = contour(mask, box, opt);
+  Result r = raw_mesh(c, g, opt);
   r.closing_mm = opt.close_handles_mm;
   finish(r, opt);
+  hold_to_mask(r, c, g, opt);
   return r;
 }
 

@@ -40,6 +40,11 @@ struct Options {
   const Volume* guide = nullptr;
   double guide_level_hu = 700.0;
   double guide_soft_hu = 40.0;  // soft tissue: the guide's span is level +- (level - soft)
+  // Every vertex of the result lies within this many of the mask's finest
+  // voxel spacing of the boundary of the mask as contoured (after any
+  // closing): vertices the smoothing or remeshing carried farther, e.g. off
+  // a cusp, are pulled back onto that shell (0 = never; docs/surface.md).
+  double max_boundary_distance_voxels = 1.0;
   std::size_t target_faces = 60000; // decimate above this many triangles (0 = never)
   double target_edge_mm = 1.0;      // isotropic remeshing edge length (0 = no CGAL repair/remeshing)
   int remesh_iterations = 3;
@@ -78,6 +83,8 @@ struct Result {
   double closing_mm = 0;          // closing radius applied (0 = none)
   int genus_before_closing = -1;  // genus of the unclosed surface when auto closing ran
   bool closing_plugs_only = false;  // the closing was kept only where it changed the topology
+  std::size_t vertices_pulled = 0;  // vertices pulled back to max_boundary_distance_voxels
+  double largest_pull_mm = 0;       // the largest such move
 };
 
 // Throws ms::Error(GeometryFailed) if the mask yields no surface.

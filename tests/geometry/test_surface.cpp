@@ -65,13 +65,15 @@ struct Ellipsoid {
   double volume() const { return 4.0 / 3.0 * kPi * semi[0] * semi[1] * semi[2]; }
 };
 
-// A grid covering the ellipsoid with the given direction matrix, its centre
-// mapped onto the ellipsoid centre; voxel inside iff its centre is inside.
-ms::Mask ellipsoid_mask(const Ellipsoid& e, const Vec3& spacing, const Mat3& direction) {
+// A grid of the given spacing and direction covering a ball of radius reach
+// about centre (its centre mapped onto centre); a voxel is inside iff its
+// centre is, by inside(p) with p in LPS.
+template <class Inside>
+ms::Mask implicit_mask(const Inside& inside, const Vec3& centre, double reach, const Vec3& spacing,
+                       const Mat3& direction) {
   ms::Mask m;
   m.geom.spacing = spacing;
   m.geom.direction = direction;
-  const double reach = *std::max_element(e.semi.begin(), e.semi.end()) + 4.0;  // covers any rotation
   Vec3 half{};
   for (int a = 0; a < 3; ++a) {
     m.geom.size[a] = static_cast<std::size_t>(std::ceil(2 * reach / spacing[a])) + 1;
@@ -80,15 +82,21 @@ ms::Mask ellipsoid_mask(const Ellipsoid& e, const Vec3& spacing, const Mat3& dir
   Vec3 rot_half{0, 0, 0};
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) rot_half[r] += direction[3 * r + c] * half[c];
-  m.geom.origin = e.centre - rot_half;
+  m.geom.origin = centre - rot_half;
   m.data.assign(m.geom.voxel_count(), 0);
   for (std::size_t k = 0; k < m.geom.size[2]; ++k)
     for (std::size_t j = 0; j < m.geom.size[1]; ++j)
       for (std::size_t i = 0; i < m.geom.size[0]; ++i) {
         const Vec3 p = m.geom.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
-        m.data[m.geom.linear(i, j, k)] = e.implicit(p) <= 0 ? 1 : 0;
+        m.data[m.geom.linear(i, j, k)] = inside(p) ? 1 : 0;
       }
   return m;
+}
+
+// The ellipsoid on such a grid.
+ms::Mask ellipsoid_mask(const Ellipsoid& e, const Vec3& spacing, const Mat3& direction) {
+  const double reach = *std::max_element(e.semi.begin(), e.semi.end()) + 4.0;  // covers any rotation
+  return implicit_mask([&](const Vec3& p) { return e.implicit(p) <= 0; }, e.centre, reach, spacing, direction);
 }
 
 // Area-weighted mean of n_f · (centroid_f - c): positive iff the faces point
@@ -377,6 +385,41 @@ TEST(Surface, FineMaskIsContouredOnABinnedGridInTheSamePlace) {
   const double worst = max_distance_to_mask_boundary(r.mesh, mask);
   std::printf("largest vertex distance to the mask boundary: %.3f mm (voxel %.2f mm)\n", worst, fine[2]);
   EXPECT_LE(worst, fine[2]);
+}
+
+// A sharp cone (half-angle 14 degrees) on a fine oblique grid: the Gaussian
+// pre-smoothing (0.6 mm) rounds its apex and its base rim inwards by more
+// than one of these voxels; the surface is held to the mask boundary there.
+TEST(Surface, SharpTipsOnAFineGridStayWithinOneVoxelOfTheMask) {
+  const Vec3 base{3.0, -2.0, 5.0}, axis = ms::normalized(Vec3{1.0, -0.5, 2.0});
+  const double height = 14.0, radius = 3.5;
+  const auto inside = [&](const Vec3& p) {
+    const double t = ms::dot(p - base, axis);
+    return t >= 0 && t <= height && ms::norm(p - base - t * axis) <= radius * (1 - t / height);
+  };
+  const Vec3 fine{0.3, 0.35, 0.4};
+  const ms::Mask mask = implicit_mask(inside, base + (0.5 * height) * axis, 0.5 * height + 3.0, fine, rotation(kAxis, kAngle));
+  ms::surface::Options unheld;
+  unheld.max_boundary_distance_voxels = 0;
+  const auto loose = ms::surface::mesh_from_mask(mask, unheld);
+  const auto r = ms::surface::mesh_from_mask(mask);
+  const double worst_loose = max_distance_to_mask_boundary(loose.mesh, mask);
+  const double worst = max_distance_to_mask_boundary(r.mesh, mask);
+  std::printf("largest vertex distance to the mask boundary: %.3f mm unheld, %.3f mm held (%zu vertices pulled, "
+              "at most %.3f mm; finest voxel %.2f mm)\n",
+              worst_loose, worst, r.vertices_pulled, r.largest_pull_mm, fine[0]);
+  EXPECT_GT(worst_loose, fine[0]);  // the case needs the hold
+  EXPECT_LE(worst, fine[0] + 1e-6);
+  EXPECT_GT(r.vertices_pulled, 0u);
+  EXPECT_TRUE(r.stats.closed);
+  EXPECT_TRUE(r.stats.manifold);
+  EXPECT_EQ(r.stats.genus, 0);
+  EXPECT_NEAR(r.stats.volume_mm3, loose.stats.volume_mm3, 0.01 * loose.stats.volume_mm3);
+  // Only the outliers move: every other vertex is where it was.
+  ASSERT_EQ(r.mesh.vertices.size(), loose.mesh.vertices.size());
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < r.mesh.vertices.size(); ++i) moved += r.mesh.vertices[i] != loose.mesh.vertices[i];
+  EXPECT_EQ(moved, r.vertices_pulled);
 }
 
 TEST(Surface, PhantomMandibleIsWatertightAndOnTheMask) {
