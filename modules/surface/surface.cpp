@@ -299,12 +299,21 @@ static Contour contour(const Mask& mask, const Box& box, const Options& opt, boo
   img->SetOrigin(0, 0, 0);
   img->AllocateScalars(VTK_FLOAT, 1);
   auto* buf = static_cast<float*>(img->GetScalarPointer());
-  std::fill(buf, buf + static_cast<std::size_t>(dims[0]) * dims[1] * dims[2], 0.0f);
-  for (long k = lo[2]; k <= hi[2]; ++k)
-    for (long j = lo[1]; j <= hi[1]; ++j)
-      for (long i = lo[0]; i <= hi[0]; ++i)
-        if (mask.data[g.linear(i, j, k)])
-          buf[(i - lo[0] + pad) + dims[0] * ((j - lo[1] + pad) + static_cast<long>(dims[1]) * (k - lo[2] + pad))] = 1.0f;
+  // Slice by slice in parallel, each slice of the crop written whole (its
+  // pad included), so the crop is filled once.
+  const std::size_t slice = static_cast<std::size_t>(dims[0]) * static_cast<std::size_t>(dims[1]);
+#pragma omp parallel for schedule(static)
+  for (long z = 0; z < dims[2]; ++z) {
+    float* out = buf + slice * static_cast<std::size_t>(z);
+    std::fill(out, out + slice, 0.0f);
+    const long k = z - pad + lo[2];
+    if (k < lo[2] || k > hi[2]) continue;
+    for (long j = lo[1]; j <= hi[1]; ++j) {
+      const std::uint8_t* row = mask.data.data() + g.linear(0, static_cast<std::size_t>(j), static_cast<std::size_t>(k));
+      float* o = out + static_cast<std::size_t>(dims[0]) * static_cast<std::size_t>(j - lo[1] + pad) + pad - lo[0];
+      for (long i = lo[0]; i <= hi[0]; ++i) o[i] = row[i] ? 1.0f : 0.0f;
+    }
+  }
 
   // Morphological closing by a ball of this radius (mm): fills the narrow
   // gaps that make handles, e.g. between teeth in contact.
