@@ -266,6 +266,68 @@ void insert(const std::vector<T>& part, const Box& b, T* grid, const Dims3& dims
                   grid + b.lo[0] + dims[0] * ((j + b.lo[1]) + dims[1] * (k + b.lo[2])));
 }
 
+// The flooding of watershed_from_markers on voxel indices of type Index
+// (32 bits when the grid allows: half the queue's memory traffic).
+template <class Index>
+std::vector<unsigned> flood_from_markers(const std::vector<float>& level, const std::uint8_t* inside,
+                                         const unsigned* markers, const Geometry& g, float lo, float hi) {
+  const std::size_t n = g.voxel_count();
+  std::vector<unsigned> label(markers, markers + n);
+  constexpr std::size_t kLevels = 1u << 16;
+  const double scale = (kLevels - 1) / (static_cast<double>(hi) - lo);
+  const long nx = static_cast<long>(g.size[0]), ny = static_cast<long>(g.size[1]), nz = static_cast<long>(g.size[2]);
+  // Each voxel's quantised level, and whether it lies on the grid's border
+  // (where a neighbour may be missing), computed once, slice by slice.
+  std::vector<std::uint16_t> bucket(n);
+  std::vector<std::uint8_t> edge(n);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k)
+    for (long j = 0; j < ny; ++j) {
+      const std::size_t row = static_cast<std::size_t>(nx) * static_cast<std::size_t>(j + ny * k);
+      const bool edge_row = j == 0 || k == 0 || j == ny - 1 || k == nz - 1;
+      for (long i = 0; i < nx; ++i) {
+        const std::size_t c = row + static_cast<std::size_t>(i);
+        bucket[c] = static_cast<std::uint16_t>(std::clamp((static_cast<double>(level[c]) - lo) * scale + 0.5, 0.0, kLevels - 1.0));
+        edge[c] = edge_row || i == 0 || i == nx - 1;
+      }
+    }
+  std::vector<std::vector<Index>> queue(kLevels);
+  const std::size_t step[3] = {1, static_cast<std::size_t>(nx), static_cast<std::size_t>(nx * ny)};
+  // Calls f(neighbour) for the face neighbours of voxel c inside the grid.
+  auto neighbours = [&](std::size_t c, auto&& f) {
+    if (!edge[c]) {
+      for (int a = 0; a < 3; ++a) f(c - step[a]), f(c + step[a]);
+      return;
+    }
+    const long i = static_cast<long>(c) % nx, j = (static_cast<long>(c) / nx) % ny, k = static_cast<long>(c) / (nx * ny);
+    const long idx[3] = {i, j, k}, len[3] = {nx, ny, nz};
+    for (int a = 0; a < 3; ++a) {
+      if (idx[a] > 0) f(c - step[a]);
+      if (idx[a] + 1 < len[a]) f(c + step[a]);
+    }
+  };
+  for (std::size_t c = 0; c < n; ++c) {
+    if (!label[c]) continue;
+    bool border = false;
+    neighbours(c, [&](std::size_t q) { border |= !label[q] && inside[q]; });
+    if (border) queue[inside[c] ? bucket[c] : 0].push_back(static_cast<Index>(c));
+  }
+  for (std::size_t b = 0; b < kLevels; ++b) {
+    std::vector<Index>& cur = queue[b];
+    for (std::size_t h = 0; h < cur.size(); ++h) {  // cur grows while it is read
+      const std::size_t c = cur[h];
+      const unsigned l = label[c];
+      neighbours(c, [&](std::size_t q) {
+        if (label[q] || !inside[q]) return;
+        label[q] = l;
+        queue[std::max<std::size_t>(b, bucket[q])].push_back(static_cast<Index>(q));
+      });
+    }
+    std::vector<Index>().swap(cur);
+  }
+  return label;
+}
+
 // Marker-controlled watershed by priority flooding (Meyer; the flooding of
 // ITK's MorphologicalWatershedFromMarkersImageFilter without watershed lines,
 // face-connected), restricted to the voxels where inside is set: the voxels
@@ -279,46 +341,9 @@ void insert(const std::vector<T>& part, const Box& b, T* grid, const Dims3& dims
 // outside `inside` and not reached keep label 0. Linear in the voxels flooded.
 std::vector<unsigned> watershed_from_markers(const std::vector<float>& level, const std::uint8_t* inside,
                                              const unsigned* markers, const Geometry& g, float lo, float hi) {
-  const std::size_t n = g.voxel_count();
-  std::vector<unsigned> label(markers, markers + n);
-  constexpr std::size_t kLevels = 1u << 16;
-  const double scale = (kLevels - 1) / (static_cast<double>(hi) - lo);
-  auto bucket = [&](std::size_t i) {
-    return static_cast<std::size_t>(std::clamp((static_cast<double>(level[i]) - lo) * scale + 0.5, 0.0, kLevels - 1.0));
-  };
-  std::vector<std::vector<std::size_t>> queue(kLevels);
-  const long nx = static_cast<long>(g.size[0]), ny = static_cast<long>(g.size[1]), nz = static_cast<long>(g.size[2]);
-  const long step[3] = {1, nx, nx * ny};
-  // Calls f(neighbour) for the face neighbours of voxel c inside the grid.
-  auto neighbours = [&](std::size_t c, auto&& f) {
-    const long i = static_cast<long>(c) % nx, j = (static_cast<long>(c) / nx) % ny, k = static_cast<long>(c) / (nx * ny);
-    const long idx[3] = {i, j, k}, len[3] = {nx, ny, nz};
-    for (int a = 0; a < 3; ++a) {
-      if (idx[a] > 0) f(c - static_cast<std::size_t>(step[a]));
-      if (idx[a] + 1 < len[a]) f(c + static_cast<std::size_t>(step[a]));
-    }
-  };
-  for (std::size_t c = 0; c < n; ++c) {
-    if (!label[c]) continue;
-    bool border = false;
-    neighbours(c, [&](std::size_t q) { border |= !label[q] && inside[q]; });
-    if (border) queue[inside[c] ? bucket(c) : 0].push_back(c);
-  }
-  for (std::size_t b = 0; b < kLevels; ++b) {
-    std::vector<std::size_t>& cur = queue[b];
-    for (std::size_t h = 0; h < cur.size(); ++h) {  // cur grows while it is read
-      const std::size_t c = cur[h];
-      const unsigned l = label[c];
-      neighbours(c, [&](std::size_t q) {
-        if (label[q] || !inside[q]) return;
-        label[q] = l;
-        const std::size_t bq = bucket(q);
-        queue[std::max(b, bq)].push_back(q);
-      });
-    }
-    std::vector<std::size_t>().swap(cur);
-  }
-  return label;
+  if (g.voxel_count() <= std::numeric_limits<std::uint32_t>::max())
+    return flood_from_markers<std::uint32_t>(level, inside, markers, g, lo, hi);
+  return flood_from_markers<std::size_t>(level, inside, markers, g, lo, hi);
 }
 
 }  // namespace
@@ -505,7 +530,6 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
           in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = set_at_index(loc, row + static_cast<double>(i) * qi);
       }
   }
-  auto depth_of = [&](const MaskImage* solid) { return depth_inside(solid->GetBufferPointer(), cdims, cg.spacing); };
   auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
     auto* c = core->GetBufferPointer();
@@ -571,8 +595,12 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   // over a patch a few mm wide); dense solid first, then the bone mask.
   double r_used = 0;
   std::vector<float> bone_depth;  // reused for the watershed landscape
+  const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
+  // Depths matter up to the deepest core and the landscape's cap: the
+  // transforms need look no deeper (exact up to it, deeper beyond).
+  const float depth_cap = std::max(static_cast<float>(r_max), kLandscapeDepthMm);
   for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
-    std::vector<float> sd = depth_of(solid.GetPointer());
+    std::vector<float> sd = depth_inside(solid->GetBufferPointer(), cdims, cg.spacing, depth_cap);
     lap("depth map");
     // Every depth is tried; the tallest mandible core wins: a core cut off
     // below fused teeth (only the lower body) is shorter than one reaching
@@ -622,7 +650,6 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       if (pending.height > tallest_any.height) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.height};
       if (!two_bones && pending.height > best_height + 1.0) adopt(pending);
     };
-    const double r_max = std::max(rsep, 3.0) + 1e-9;
     for (double rr = rsep; rr <= r_max; rr += 0.5) {
       Trial t;
       t.rr = rr;
@@ -686,7 +713,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       // (cusp contacts) and in intensity valleys (occlusal gap, joint space).
       // Levels lie in [-2, 0]: depth (capped at 4 mm) and HU above soft
       // tissue (capped at 2600 HU) each contribute down to -1.
-      if (bone_depth.empty()) bone_depth = depth_of(bone.GetPointer());
+      if (bone_depth.empty()) bone_depth = depth_inside(bone->GetBufferPointer(), cdims, cg.spacing, depth_cap);
       const auto* b = bone->GetBufferPointer();
       const float hu0 = static_cast<float>(offset);
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
