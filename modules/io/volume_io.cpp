@@ -453,6 +453,26 @@ std::optional<std::uintmax_t> bytes_on_disk(const std::string& path) {
 // 9-number TransformMatrix corrupted the heap: "free(): invalid next size").
 // So NDims must be 1 to 4 and each geometry field must hold NDims (vectors) or
 // NDims^2 (matrices) numbers before ITK sees the file.
+// Whether a header line is text: valid UTF-8 without control characters
+// other than tab.
+bool is_header_text(const std::string& line) {
+  for (std::size_t i = 0; i < line.size();) {
+    const auto c = static_cast<unsigned char>(line[i]);
+    if (c < 0x80) {
+      if (c < 0x20 && c != '\t') return false;
+      if (c == 0x7f) return false;
+      ++i;
+      continue;
+    }
+    const int extra = c >= 0xf0 && c <= 0xf4 ? 3 : c >= 0xe0 && c <= 0xef ? 2 : c >= 0xc2 && c <= 0xdf ? 1 : -1;
+    if (extra < 0 || i + static_cast<std::size_t>(extra) >= line.size()) return false;  // not a lead byte, or cut short
+    for (int k = 1; k <= extra; ++k)
+      if ((static_cast<unsigned char>(line[i + static_cast<std::size_t>(k)]) & 0xc0) != 0x80) return false;
+    i += static_cast<std::size_t>(extra) + 1;
+  }
+  return true;
+}
+
 void check_meta_header(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
@@ -466,6 +486,10 @@ void check_meta_header(const std::string& path) {
   std::vector<Field> fields;
   for (int n = 0; n < 200 && std::getline(in, line); ++n) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    // A header is text: MetaIO overran a buffer on an ElementDataFile name of
+    // bytes that are not (found by fuzzing: strlen past a heap block).
+    if (!is_header_text(line))
+      throw Error(ExitCode::InputInvalid, path + ": MetaImage header line " + std::to_string(n + 1) + " is not text");
     if (trim(line).empty()) continue;
     // Every header line is "Key = Value" with a short word for a key: MetaIO
     // reads everything up to the next '=' as the key and strcpy's it into a

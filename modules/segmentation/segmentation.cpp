@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <map>
+#include <queue>
 #include <cmath>
 #include <limits>
 #include <cstdio>
@@ -64,6 +65,9 @@ constexpr double kSecondBoneFraction = 0.2;
 
 // Depth (mm) at which the watershed landscape's depth term saturates.
 constexpr float kLandscapeDepthMm = 4.0f;
+// Longest path through bone (mm) the crowns-by-their-roots partition follows:
+// a molar's root and crown together are ~20 mm.
+constexpr double kRootReachMm = 25.0;
 
 // MANDISYM_DEBUG_SEG=1: time of each step on stderr (profiling aid).
 struct SegLap : DebugLap {
@@ -266,6 +270,43 @@ void insert(const std::vector<T>& part, const Box& b, T* grid, const Dims3& dims
                   grid + b.lo[0] + dims[0] * ((j + b.lo[1]) + dims[1] * (k + b.lo[2])));
 }
 
+// Face neighbours of a grid's voxels: whether a voxel lies on the grid's
+// border (where a neighbour may be missing) is computed once, slice by
+// slice, so that the voxels inside need no index arithmetic.
+class FaceNeighbours {
+ public:
+  explicit FaceNeighbours(const Geometry& g)
+      : nx_(static_cast<long>(g.size[0])), ny_(static_cast<long>(g.size[1])), nz_(static_cast<long>(g.size[2])),
+        step_{1, static_cast<std::size_t>(nx_), static_cast<std::size_t>(nx_ * ny_)}, edge_(g.voxel_count()) {
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < nz_; ++k)
+      for (long j = 0; j < ny_; ++j) {
+        const std::size_t row = static_cast<std::size_t>(nx_) * static_cast<std::size_t>(j + ny_ * k);
+        const bool edge_row = j == 0 || k == 0 || j == ny_ - 1 || k == nz_ - 1;
+        for (long i = 0; i < nx_; ++i) edge_[row + static_cast<std::size_t>(i)] = edge_row || i == 0 || i == nx_ - 1;
+      }
+  }
+  // Calls f(neighbour, axis) for the face neighbours of voxel c inside the grid.
+  template <class F>
+  void each(std::size_t c, F&& f) const {
+    if (!edge_[c]) {
+      for (int a = 0; a < 3; ++a) f(c - step_[a], a), f(c + step_[a], a);
+      return;
+    }
+    const long i = static_cast<long>(c) % nx_, j = (static_cast<long>(c) / nx_) % ny_, k = static_cast<long>(c) / (nx_ * ny_);
+    const long idx[3] = {i, j, k}, len[3] = {nx_, ny_, nz_};
+    for (int a = 0; a < 3; ++a) {
+      if (idx[a] > 0) f(c - step_[a], a);
+      if (idx[a] + 1 < len[a]) f(c + step_[a], a);
+    }
+  }
+
+ private:
+  long nx_, ny_, nz_;
+  std::size_t step_[3];
+  std::vector<std::uint8_t> edge_;
+};
+
 // The flooding of watershed_from_markers on voxel indices of type Index
 // (32 bits when the grid allows: half the queue's memory traffic).
 template <class Index>
@@ -275,41 +316,18 @@ std::vector<unsigned> flood_from_markers(const std::vector<float>& level, const 
   std::vector<unsigned> label(markers, markers + n);
   constexpr std::size_t kLevels = 1u << 16;
   const double scale = (kLevels - 1) / (static_cast<double>(hi) - lo);
-  const long nx = static_cast<long>(g.size[0]), ny = static_cast<long>(g.size[1]), nz = static_cast<long>(g.size[2]);
-  // Each voxel's quantised level, and whether it lies on the grid's border
-  // (where a neighbour may be missing), computed once, slice by slice.
+  // Each voxel's quantised level, computed once.
   std::vector<std::uint16_t> bucket(n);
-  std::vector<std::uint8_t> edge(n);
 #pragma omp parallel for schedule(static)
-  for (long k = 0; k < nz; ++k)
-    for (long j = 0; j < ny; ++j) {
-      const std::size_t row = static_cast<std::size_t>(nx) * static_cast<std::size_t>(j + ny * k);
-      const bool edge_row = j == 0 || k == 0 || j == ny - 1 || k == nz - 1;
-      for (long i = 0; i < nx; ++i) {
-        const std::size_t c = row + static_cast<std::size_t>(i);
-        bucket[c] = static_cast<std::uint16_t>(std::clamp((static_cast<double>(level[c]) - lo) * scale + 0.5, 0.0, kLevels - 1.0));
-        edge[c] = edge_row || i == 0 || i == nx - 1;
-      }
-    }
+  for (long c = 0; c < static_cast<long>(n); ++c)
+    bucket[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(
+        std::clamp((static_cast<double>(level[static_cast<std::size_t>(c)]) - lo) * scale + 0.5, 0.0, kLevels - 1.0));
+  const FaceNeighbours neighbours(g);
   std::vector<std::vector<Index>> queue(kLevels);
-  const std::size_t step[3] = {1, static_cast<std::size_t>(nx), static_cast<std::size_t>(nx * ny)};
-  // Calls f(neighbour) for the face neighbours of voxel c inside the grid.
-  auto neighbours = [&](std::size_t c, auto&& f) {
-    if (!edge[c]) {
-      for (int a = 0; a < 3; ++a) f(c - step[a]), f(c + step[a]);
-      return;
-    }
-    const long i = static_cast<long>(c) % nx, j = (static_cast<long>(c) / nx) % ny, k = static_cast<long>(c) / (nx * ny);
-    const long idx[3] = {i, j, k}, len[3] = {nx, ny, nz};
-    for (int a = 0; a < 3; ++a) {
-      if (idx[a] > 0) f(c - step[a]);
-      if (idx[a] + 1 < len[a]) f(c + step[a]);
-    }
-  };
   for (std::size_t c = 0; c < n; ++c) {
     if (!label[c]) continue;
     bool border = false;
-    neighbours(c, [&](std::size_t q) { border |= !label[q] && inside[q]; });
+    neighbours.each(c, [&](std::size_t q, int) { border |= !label[q] && inside[q]; });
     if (border) queue[inside[c] ? bucket[c] : 0].push_back(static_cast<Index>(c));
   }
   for (std::size_t b = 0; b < kLevels; ++b) {
@@ -317,7 +335,7 @@ std::vector<unsigned> flood_from_markers(const std::vector<float>& level, const 
     for (std::size_t h = 0; h < cur.size(); ++h) {  // cur grows while it is read
       const std::size_t c = cur[h];
       const unsigned l = label[c];
-      neighbours(c, [&](std::size_t q) {
+      neighbours.each(c, [&](std::size_t q, int) {
         if (label[q] || !inside[q]) return;
         label[q] = l;
         queue[std::max<std::size_t>(b, bucket[q])].push_back(static_cast<Index>(q));
@@ -447,6 +465,77 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
     }
   }
   return joined;
+}
+
+// "A crown follows its root" (docs/segmentation.md, step 5): with the teeth
+// in occlusion a lower crown is welded to the upper one as widely as it hangs
+// on its root, and the watershed can give it to the maxilla. Through bone, it
+// is nearer the mandible's core (its own root) than any other large core
+// (the upper crown and root lie between). So: a geodesic Voronoi partition of
+// the bone among the mandible's core and the cores of regions too large to be
+// fragments (6-connected paths in mm, computed to max_mm, on a bucket queue
+// of 1/8 of the finest spacing); connected pieces of other regions that fall
+// to the mandible's core and hold a voxel at least min_depth_mm deep (a
+// crown, not a thin plate such as the roof of a glenoid fossa) join the
+// mandible. Never the reverse. Returns the voxels moved.
+static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::PixelType* bone, const LabelImage::PixelType* markers,
+                                    const std::vector<bool>& source, unsigned mand, const std::vector<float>& depth,
+                                    const Geometry& g, float min_depth_mm, double max_mm) {
+  const std::size_t n = g.voxel_count();
+  const FaceNeighbours neighbours(g);
+  // Only where the mandible's region touches another region's bone.
+  bool touches = false;
+  for (std::size_t c = 0; c < n && !touches; ++c)
+    if (bone[c] && w[c] == mand)
+      neighbours.each(c, [&](std::size_t q, int) { touches |= bone[q] && w[q] != 0 && w[q] != mand; });
+  if (!touches) return 0;
+  const double unit = std::min({g.spacing[0], g.spacing[1], g.spacing[2]}) / 8.0;
+  const std::uint32_t weight[3] = {static_cast<std::uint32_t>(std::lround(g.spacing[0] / unit)),
+                                   static_cast<std::uint32_t>(std::lround(g.spacing[1] / unit)),
+                                   static_cast<std::uint32_t>(std::lround(g.spacing[2] / unit))};
+  const std::uint32_t far = static_cast<std::uint32_t>(std::ceil(max_mm / unit));
+  std::vector<std::uint32_t> dist(n, std::numeric_limits<std::uint32_t>::max());
+  std::vector<unsigned> nearest(n, 0);
+  std::vector<std::vector<std::uint32_t>> queue(far + 1);
+  for (std::size_t c = 0; c < n; ++c)
+    if (bone[c] && markers[c] && markers[c] < source.size() && source[markers[c]])
+      dist[c] = 0, nearest[c] = markers[c], queue[0].push_back(static_cast<std::uint32_t>(c));
+  for (std::uint32_t d = 0; d <= far; ++d) {
+    for (const std::uint32_t c : queue[d]) {
+      if (dist[c] != d) continue;  // reached earlier by a shorter path
+      neighbours.each(c, [&](std::size_t q, int a) {
+        const std::uint32_t nd = d + weight[a];
+        if (!bone[q] || nd > far || nd >= dist[q]) return;
+        dist[q] = nd;
+        nearest[q] = nearest[c];
+        queue[nd].push_back(static_cast<std::uint32_t>(q));
+      });
+    }
+    std::vector<std::uint32_t>().swap(queue[d]);
+  }
+  std::vector<std::uint8_t> cand(n, 0);
+  for (std::size_t c = 0; c < n; ++c) cand[c] = bone[c] && w[c] != 0 && w[c] != mand && nearest[c] == mand;
+  std::size_t moved = 0;
+  std::vector<std::uint32_t> piece;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (cand[s] != 1) continue;
+    piece.assign(1, static_cast<std::uint32_t>(s));
+    cand[s] = 2;
+    float deepest = 0;
+    for (std::size_t h = 0; h < piece.size(); ++h) {
+      deepest = std::max(deepest, depth[piece[h]]);
+      neighbours.each(piece[h], [&](std::size_t q, int) {
+        if (cand[q] == 1) cand[q] = 2, piece.push_back(static_cast<std::uint32_t>(q));
+      });
+    }
+    if (std::getenv("MANDISYM_DEBUG_SEG") && piece.size() > 20)
+      std::fprintf(stderr, "  nearer the mandible's core: %zu voxels, deepest %.1f mm%s\n", piece.size(), deepest,
+                   deepest >= min_depth_mm ? " -> mandible" : "");
+    if (deepest < min_depth_mm) continue;
+    for (const std::uint32_t c : piece) w[c] = mand;
+    moved += piece.size();
+  }
+  return moved;
 }
 
 static Separated separate(const Volume& ct, const Options& opt, const GridContext& ctx) {
@@ -749,6 +838,19 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     // working grid (interpolated), fragments are skull-base pieces as often as
     // teeth (OpenKBP pt_246: Dice 0.79 -> 0.77 with them joined).
     const bool fine_scan = native_max_spacing <= opt.max_working_spacing_mm;
+    if (fine_scan && opt.crown_min_depth_mm > 0) {
+      // Regions too large to be fragments (the fragment rule's limit) and the mandible's own core.
+      std::vector<std::size_t> region_size(n_markers + 1, 0);
+      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+        if (b[i] && wsl[i] && wsl[i] <= n_markers) ++region_size[wsl[i]];
+      const std::size_t limit = std::max(static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3),
+                                         static_cast<std::size_t>(opt.fragment_merge_fraction * static_cast<double>(region_size[mand])));
+      std::vector<bool> source(n_markers + 1, false);
+      for (unsigned l = 1; l <= n_markers; ++l) source[l] = l == mand || region_size[l] > limit;
+      const std::size_t moved = reclaim_by_roots(wsl, b, m, source, mand, bone_depth, cg, static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
+      if (lap.on()) std::fprintf(stderr, "  %zu voxels nearer the mandible's core joined it\n", moved);
+      lap("crowns by their roots");
+    }
     const std::vector<bool> joined =
         fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3),
                                        opt.fragment_merge_fraction, crop_cut)

@@ -43,6 +43,11 @@ struct Options {
   double fragment_merge_cm3 = 4.0;
   // ... or up to this fraction of the mandible's own region, if larger.
   double fragment_merge_fraction = 0.1;
+  // A crown follows its root: pieces of other regions nearer (through bone)
+  // to the mandible's core than to any other large core join the mandible
+  // when they hold a voxel at least this deep (mm): a crown, not a thin plate
+  // (docs/segmentation.md, step 5; 0 = never). On scans that resolve teeth.
+  double crown_min_depth_mm = 2.0;
   // Beyond the band around the mandible's core, thick parts of its region are
   // kept up to this distance (mm) from the core: crowns whose thin dense shell
   // left no core, and the thin ramus plate and processes when the deeper cores

@@ -688,6 +688,9 @@ TEST(BadInput, MalformedNrrdAndMetaImage) {
       {"compressed.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_FLOAT\nCompressedData = True\n"
                          "CompressedDataSize = 17595999999999999996\nElementDataFile = LOCAL\nxx",
        "CompressedDataSize"},  // MetaIO allocated 1.8e19 bytes (found by fuzzing)
+      {"binary_name.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_FLOAT\nCompressedData = True\n"
+                          "ElementDataFile = " + std::string(120, '\xdc') + "LOCA%\nxx",
+       "not text"},  // MetaIO read past a heap block on that name (strlen; found by fuzzing)
       {"terabytes.nrrd", "NRRD0004\ndimension: 3\nsizes: 100000 100000 100000\ntype: short\nencoding: raw\nendian: little\n\nx",
        "declares"},
   };

@@ -211,27 +211,37 @@ INSTANTIATE_TEST_SUITE_P(
       return n;
     });
 
-// Teeth in occlusion (gap 0), 0.8 mm voxels: separated by deeper cores, below
-// the 0.97 target (issue C is open: the lower crowns, stacked flat on the upper
-// ones, go to the maxilla); guards the level reached, 0.963 at both joint
-// spaces (0.958 before the thick reach and the fragment limit were raised,
-// docs/segmentation.md). With a 1 mm joint space this used to fail outright: at a shallow
-// core depth the maxilla's and the mandible's cores are one (welded through
-// the crowns), and that core, reaching from the chin to the upper jaw, was
-// the tallest candidate (Dice 0.62 and 172 cm3 with seed 1); one depth step
-// deeper it falls apart into two large cores, which now rules it out. The
-// bridged joint also let the skull take the condylar processes, and the
-// cortex opened there drained the filled interior (Dice 0.72 with seed 3).
+// Teeth in occlusion (gap 0), 0.8 mm voxels: separated by deeper cores, and
+// the lower crowns, welded flat to the upper ones as widely as they hang on
+// their roots, kept by "a crown follows its root" (Options::crown_min_depth_mm):
+// Dice 0.963 without that step (the watershed gave the posterior lower crowns
+// to the maxilla), 0.97+ with it. With a 1 mm joint space this used to fail
+// outright: at a shallow core depth the maxilla's and the mandible's cores are
+// one (welded through the crowns), and that core, reaching from the chin to
+// the upper jaw, was the tallest candidate (Dice 0.62 and 172 cm3 with seed
+// 1); one depth step deeper it falls apart into two large cores, which now
+// rules it out. The bridged joint also let the skull take the condylar
+// processes, and the cortex opened there drained the filled interior (Dice
+// 0.72 with seed 3); the crown step must not give the glenoid fossa's roof to
+// the condyle either (the volume bound below).
 class TeethInOcclusion : public ::testing::TestWithParam<double> {};
 
 TEST_P(TeethInOcclusion, AreSeparatedWithoutTheMaxilla) {
   const auto ph = jaw_phantom(0.8, 0, GetParam(), 3);
   const auto r = segmentation::segment_mandible(ph.ct);
   const double d = ms::testing::dice(r.mask, ph.mandible);
+  segmentation::Options no_crown_step;
+  no_crown_step.crown_min_depth_mm = 0;
+  const double d_without = ms::testing::dice(segmentation::segment_mandible(ph.ct, no_crown_step).mask, ph.mandible);
   RecordProperty("dice", std::to_string(d));
-  EXPECT_GE(d, 0.96);
+  RecordProperty("dice_without_crown_step", std::to_string(d_without));
+  std::printf("Dice %.4f (without the crown step %.4f), %zu voxels against %zu\n", d, d_without, r.voxels, ph.mandible.count());
+  EXPECT_GE(d, 0.97);
+  EXPECT_LT(d_without, 0.97);  // the step is what reaches the target
   EXPECT_GT(r.separation_radius_mm, 1.0);  // needed deeper cores than the default
-  EXPECT_LT(static_cast<double>(r.voxels), 1.02 * static_cast<double>(ph.mandible.count()));  // no maxilla
+  // No maxilla (+25 % and more) and no fossa roof: within the partial-volume
+  // surplus of the separated cases (+4 % at 0.8 mm).
+  EXPECT_LT(static_cast<double>(r.voxels), 1.05 * static_cast<double>(ph.mandible.count()));
 }
 
 INSTANTIATE_TEST_SUITE_P(AutoSegmentation, TeethInOcclusion, ::testing::Values(2.5, 1.0),
@@ -244,7 +254,8 @@ INSTANTIATE_TEST_SUITE_P(AutoSegmentation, TeethInOcclusion, ::testing::Values(2
 // mandible's region): Dice 0.937. And the posterior ramus, more than 8 mm from
 // any core, was dropped as if it were a streak, leaving the process a separate
 // piece (the surface then kept only the rest: SAF score 0.13 for a symmetric
-// jaw, Cr_L missing): Dice 0.949, two components. Now 0.963, one piece.
+// jaw, Cr_L missing): Dice 0.949, two components. Then 0.963, one piece; 0.977
+// with the lower crowns kept by their roots.
 TEST(AutoSegmentation, CondylarProcessSurvivesOcclusionUnderPose) {
   phantom::PhantomParams p;
   p.spacing = {0.8, 0.8, 0.8};
@@ -258,7 +269,7 @@ TEST(AutoSegmentation, CondylarProcessSurvivesOcclusionUnderPose) {
   const auto r = segmentation::segment_mandible(ph.ct);
   const double d = ms::testing::dice(r.mask, ph.mandible);
   RecordProperty("dice", std::to_string(d));
-  EXPECT_GE(d, 0.96);
+  EXPECT_GE(d, 0.97);
   EXPECT_EQ(face_connected_components(r.mask), 1u);
 }
 
