@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <map>
-#include <queue>
 #include <cmath>
 #include <limits>
 #include <cstdio>
@@ -401,8 +400,16 @@ struct Separated {
   Result info;                       // method, offsets, warnings, radius, marker source
 };
 
+// Largest region that can be a fragment of the mandible: max_voxels, or a
+// fraction of the mandible's own region if that is larger. A process is a
+// fraction of the mandible, whatever the mandible's size (a coronoid process
+// cut off by the core depth was 4.4 cm3 of a 75 cm3 region).
+static std::size_t fragment_limit(std::size_t mandible_region, std::size_t max_voxels, double max_fraction) {
+  return std::max(max_voxels, static_cast<std::size_t>(max_fraction * static_cast<double>(mandible_region)));
+}
+
 // Labels of a watershed (0 = none) that belong to the mandible: its own label,
-// plus every region of at most max_voxels bone voxels whose face contacts with the
+// plus every region of at most fragment_limit() bone voxels whose face contacts with the
 // mandible's (growing) region outnumber its contacts with any other single
 // region; repeated until nothing joins (a fragment of a fragment).
 static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, const MaskImage::PixelType* bone,
@@ -441,10 +448,7 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
           if (bone[q] && c != 0 && c != a && c <= n) ++contact[std::minmax(a, c)];
         }
       }
-  // A process is a fraction of the mandible, whatever the mandible's size:
-  // the limit grows with the mandible's own region (a coronoid process cut
-  // off by the core depth was 4.4 cm3 of a 75 cm3 region).
-  const std::size_t limit = std::max(max_voxels, static_cast<std::size_t>(max_fraction * static_cast<double>(size[mand])));
+  const std::size_t limit = fragment_limit(size[mand], max_voxels, max_fraction);
   for (bool changed = true; changed;) {
     changed = false;
     for (unsigned l = 1; l <= n; ++l) {
@@ -482,6 +486,7 @@ static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::P
                                     const std::vector<bool>& source, unsigned mand, const std::vector<float>& depth,
                                     const Geometry& g, float min_depth_mm, double max_mm) {
   const std::size_t n = g.voxel_count();
+  if (n > std::numeric_limits<std::uint32_t>::max()) return 0;  // 32-bit queues (a crop is far smaller)
   const FaceNeighbours neighbours(g);
   // Only where the mandible's region touches another region's bone.
   bool touches = false;
@@ -843,8 +848,8 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       std::vector<std::size_t> region_size(n_markers + 1, 0);
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
         if (b[i] && wsl[i] && wsl[i] <= n_markers) ++region_size[wsl[i]];
-      const std::size_t limit = std::max(static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3),
-                                         static_cast<std::size_t>(opt.fragment_merge_fraction * static_cast<double>(region_size[mand])));
+      const std::size_t limit = fragment_limit(region_size[mand], static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3),
+                                               opt.fragment_merge_fraction);
       std::vector<bool> source(n_markers + 1, false);
       for (unsigned l = 1; l <= n_markers; ++l) source[l] = l == mand || region_size[l] > limit;
       const std::size_t moved = reclaim_by_roots(wsl, b, m, source, mand, bone_depth, cg, static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
