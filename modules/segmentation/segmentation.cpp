@@ -690,9 +690,9 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   double r_used = 0;
   std::vector<float> bone_depth;  // reused for the watershed landscape
   const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
-  // Depths matter up to the deepest core and the landscape's cap: the
-  // transforms need look no deeper (exact up to it, deeper beyond).
-  const float depth_cap = std::max(static_cast<float>(r_max), kLandscapeDepthMm);
+  // Depths matter up to the deepest core, the landscape's cap and the crown
+  // step's depth: the transforms need look no deeper (exact up to it, deeper beyond).
+  const float depth_cap = std::max({static_cast<float>(r_max), kLandscapeDepthMm, static_cast<float>(opt.crown_min_depth_mm)});
   for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
     std::vector<float> sd = depth_inside(solid->GetBufferPointer(), cdims, cg.spacing, depth_cap);
     lap("depth map");
