@@ -273,6 +273,9 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.genus_before_closing = surf.genus_before_closing;
     S.closing_plugs_only = surf.closing_plugs_only;
     S.vertices_pulled = surf.vertices_pulled;
+    if (surf.largest_pull_mm > 0.25 * std::max(mo.target_edge_mm, 1.0))
+      S.warnings.push_back("surface: " + std::to_string(surf.vertices_pulled) + " vertices pulled up to " + num(surf.largest_pull_mm) +
+                           " mm back to within a voxel of the mask (docs/surface.md); the triangles around them were not re-checked");
     if (surf.genus_before_closing > 0 && surf.closing_mm > 0)
       S.warnings.push_back("surface: " + std::to_string(surf.genus_before_closing) + " handle(s) (e.g. teeth in contact) removed by " +
                            (surf.closing_plugs_only ? "plugs from a " : "a ") + num(surf.closing_mm) +

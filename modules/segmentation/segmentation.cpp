@@ -306,30 +306,40 @@ class FaceNeighbours {
   std::vector<std::uint8_t> edge_;
 };
 
+// A watershed landscape quantised to 2^16 levels over [lo, hi], a range fixed
+// by the landscape's definition, not by the voxels at hand (a crop of the
+// grid then floods in the same order as the whole grid: near-equal saddles,
+// e.g. crowns in occlusion, are decided the same way), with the grid's face
+// neighbours: built once, flooded from several marker sets.
+struct Landscape {
+  static constexpr std::size_t kLevels = 1u << 16;
+  Landscape(const std::vector<float>& level, const Geometry& g, float lo, float hi) : bucket(g.voxel_count()), neighbours(g) {
+    const double scale = (kLevels - 1) / (static_cast<double>(hi) - lo);
+#pragma omp parallel for schedule(static)
+    for (long c = 0; c < static_cast<long>(bucket.size()); ++c)
+      bucket[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(
+          std::clamp((static_cast<double>(level[static_cast<std::size_t>(c)]) - lo) * scale + 0.5, 0.0, kLevels - 1.0));
+  }
+  std::vector<std::uint16_t> bucket;  // each voxel's quantised level
+  FaceNeighbours neighbours;
+};
+
 // The flooding of watershed_from_markers on voxel indices of type Index
 // (32 bits when the grid allows: half the queue's memory traffic).
 template <class Index>
-std::vector<unsigned> flood_from_markers(const std::vector<float>& level, const std::uint8_t* inside,
-                                         const unsigned* markers, const Geometry& g, float lo, float hi) {
-  const std::size_t n = g.voxel_count();
+std::vector<unsigned> flood_from_markers(const Landscape& land, const std::uint8_t* inside, const unsigned* markers) {
+  const std::size_t n = land.bucket.size();
   std::vector<unsigned> label(markers, markers + n);
-  constexpr std::size_t kLevels = 1u << 16;
-  const double scale = (kLevels - 1) / (static_cast<double>(hi) - lo);
-  // Each voxel's quantised level, computed once.
-  std::vector<std::uint16_t> bucket(n);
-#pragma omp parallel for schedule(static)
-  for (long c = 0; c < static_cast<long>(n); ++c)
-    bucket[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(
-        std::clamp((static_cast<double>(level[static_cast<std::size_t>(c)]) - lo) * scale + 0.5, 0.0, kLevels - 1.0));
-  const FaceNeighbours neighbours(g);
-  std::vector<std::vector<Index>> queue(kLevels);
+  const auto& bucket = land.bucket;
+  const auto& neighbours = land.neighbours;
+  std::vector<std::vector<Index>> queue(Landscape::kLevels);
   for (std::size_t c = 0; c < n; ++c) {
     if (!label[c]) continue;
     bool border = false;
     neighbours.each(c, [&](std::size_t q, int) { border |= !label[q] && inside[q]; });
     if (border) queue[inside[c] ? bucket[c] : 0].push_back(static_cast<Index>(c));
   }
-  for (std::size_t b = 0; b < kLevels; ++b) {
+  for (std::size_t b = 0; b < Landscape::kLevels; ++b) {
     std::vector<Index>& cur = queue[b];
     for (std::size_t h = 0; h < cur.size(); ++h) {  // cur grows while it is read
       const std::size_t c = cur[h];
@@ -351,16 +361,12 @@ std::vector<unsigned> flood_from_markers(const std::vector<float>& level, const 
 // next to a marker enter a hierarchical queue at their level; the lowest is
 // taken and its unlabelled neighbours take its label, entering the queue at
 // their own level or, when lower, at the current one (first in, first out
-// within a level). Levels are quantised to 2^16 steps over [lo, hi], a range
-// fixed by the landscape's definition, not by the voxels at hand: a crop of
-// the grid then floods in the same order as the whole grid (near-equal
-// saddles, e.g. crowns in occlusion, are decided the same way). Voxels
-// outside `inside` and not reached keep label 0. Linear in the voxels flooded.
-std::vector<unsigned> watershed_from_markers(const std::vector<float>& level, const std::uint8_t* inside,
-                                             const unsigned* markers, const Geometry& g, float lo, float hi) {
-  if (g.voxel_count() <= std::numeric_limits<std::uint32_t>::max())
-    return flood_from_markers<std::uint32_t>(level, inside, markers, g, lo, hi);
-  return flood_from_markers<std::size_t>(level, inside, markers, g, lo, hi);
+// within a level; levels quantised, see Landscape). Voxels outside `inside`
+// and not reached keep label 0. Linear in the voxels flooded.
+std::vector<unsigned> watershed_from_markers(const Landscape& land, const std::uint8_t* inside, const unsigned* markers) {
+  if (land.bucket.size() <= std::numeric_limits<std::uint32_t>::max())
+    return flood_from_markers<std::uint32_t>(land, inside, markers);
+  return flood_from_markers<std::size_t>(land, inside, markers);
 }
 
 }  // namespace
@@ -484,10 +490,9 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
 // mandible. Never the reverse. Returns the voxels moved.
 static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::PixelType* bone, const LabelImage::PixelType* markers,
                                     const std::vector<bool>& source, unsigned mand, const std::vector<float>& depth,
-                                    const Geometry& g, float min_depth_mm, double max_mm) {
+                                    const Geometry& g, const FaceNeighbours& neighbours, float min_depth_mm, double max_mm) {
   const std::size_t n = g.voxel_count();
   if (n > std::numeric_limits<std::uint32_t>::max()) return 0;  // 32-bit queues (a crop is far smaller)
-  const FaceNeighbours neighbours(g);
   // Only where the mandible's region touches another region's bone.
   bool touches = false;
   for (std::size_t c = 0; c < n && !touches; ++c)
@@ -810,6 +815,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       if (bone_depth.empty()) bone_depth = depth_inside(bone->GetBufferPointer(), cdims, cg.spacing, depth_cap);
       const auto* b = bone->GetBufferPointer();
       const float hu0 = static_cast<float>(offset);
+#pragma omp parallel for schedule(static)
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
         landscape[i] = b[i] ? -std::min(bone_depth[i], kLandscapeDepthMm) / kLandscapeDepthMm -
                                   std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f
@@ -820,45 +826,48 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     // below the dense one) must not let the skull's flood into the condyle
     // before the mandible's own reaches it through the condylar process (it
     // did: 0.8 mm, 1 mm joint space, the condylar processes went to the skull).
+    const Landscape land(landscape, cg, -2.0f, 0.0f);
+    std::vector<float>().swap(landscape);
     std::vector<unsigned> wsl;
     if (r.marker_source == std::string("dense bone")) {
       std::vector<std::uint8_t> dense_bone(cg.voxel_count());
       const auto* b = bone->GetBufferPointer();
       const auto* ds = dense_solid->GetBufferPointer();
       for (std::size_t i = 0; i < dense_bone.size(); ++i) dense_bone[i] = b[i] && ds[i];
-      const std::vector<unsigned> first = watershed_from_markers(landscape, dense_bone.data(), markers->GetBufferPointer(), cg, -2.0f, 0.0f);
-      wsl = watershed_from_markers(landscape, b, first.data(), cg, -2.0f, 0.0f);
+      const std::vector<unsigned> first = watershed_from_markers(land, dense_bone.data(), markers->GetBufferPointer());
+      wsl = watershed_from_markers(land, b, first.data());
     } else {
-      wsl = watershed_from_markers(landscape, bone->GetBufferPointer(), markers->GetBufferPointer(), cg, -2.0f, 0.0f);
+      wsl = watershed_from_markers(land, bone->GetBufferPointer(), markers->GetBufferPointer());
     }
     lap("watershed");
     const unsigned* w = wsl.data();
     const auto* b = bone->GetBufferPointer();
     const auto* m = markers->GetBufferPointer();
-    // Fragments of the mandible: a tooth crown or a thin process whose neck
-    // the core depth cut becomes a marker of its own and floods its own
-    // region. A small region (≤ Options::fragment_merge_cm3) that shares more
-    // boundary with the mandible's region than with any other region joins it.
-    // Only where the scan resolves crowns and necks: on scans coarser than the
-    // working grid (interpolated), fragments are skull-base pieces as often as
-    // teeth (OpenKBP pt_246: Dice 0.79 -> 0.77 with them joined).
+    // Crowns and fragments are looked for only where the scan resolves them:
+    // on scans coarser than the working grid (interpolated), fragments are
+    // skull-base pieces as often as teeth (OpenKBP pt_246: Dice 0.79 -> 0.77 with them joined).
     const bool fine_scan = native_max_spacing <= opt.max_working_spacing_mm;
+    const auto max_fragment_voxels = static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3);
+    // A crown follows its root (reclaim_by_roots).
     if (fine_scan && opt.crown_min_depth_mm > 0) {
       // Regions too large to be fragments (the fragment rule's limit) and the mandible's own core.
       std::vector<std::size_t> region_size(n_markers + 1, 0);
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
         if (b[i] && wsl[i] && wsl[i] <= n_markers) ++region_size[wsl[i]];
-      const std::size_t limit = fragment_limit(region_size[mand], static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3),
-                                               opt.fragment_merge_fraction);
+      const std::size_t limit = fragment_limit(region_size[mand], max_fragment_voxels, opt.fragment_merge_fraction);
       std::vector<bool> source(n_markers + 1, false);
       for (unsigned l = 1; l <= n_markers; ++l) source[l] = l == mand || region_size[l] > limit;
-      const std::size_t moved = reclaim_by_roots(wsl, b, m, source, mand, bone_depth, cg, static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
+      const std::size_t moved = reclaim_by_roots(wsl, b, m, source, mand, bone_depth, cg, land.neighbours,
+                                                 static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
       if (lap.on()) std::fprintf(stderr, "  %zu voxels nearer the mandible's core joined it\n", moved);
       lap("crowns by their roots");
     }
+    // Fragments of the mandible: a tooth crown or a thin process whose neck
+    // the core depth cut becomes a marker of its own and floods its own
+    // region. A small region (≤ Options::fragment_merge_cm3) that shares more
+    // boundary with the mandible's region than with any other region joins it.
     const std::vector<bool> joined =
-        fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3),
-                                       opt.fragment_merge_fraction, crop_cut)
+        fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, max_fragment_voxels, opt.fragment_merge_fraction, crop_cut)
                   : [&] { std::vector<bool> j(n_markers + 1, false); j[mand] = true; return j; }();
     auto in_mandible = [&](LabelImage::PixelType l) { return l != 0 && joined[l]; };
     lap("fragments");
