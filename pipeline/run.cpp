@@ -349,7 +349,11 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       S.warnings.push_back("asymmetry: " + std::to_string(S.saf.skipped.size()) +
                            " SAF configuration(s) skipped for missing landmarks");
     const auto areas = asymmetry::vertex_areas(surf.mesh);
-    if (!S.saf.per_vertex.empty()) S.saf_regions = asymmetry::regional_means(S.saf.per_vertex, areas, regions);
+    if (!S.saf.per_vertex.empty()) {
+      S.saf_regions = asymmetry::regional_means(S.saf.per_vertex, areas, regions);
+      S.saf_sided = asymmetry::sided_map(S.saf.per_vertex, S.mirror);
+      S.saf_regions_sided = asymmetry::regional_means(S.saf_sided, areas, regions);
+    }
     S.bilateral = asymmetry::bilateral_measures(S.landmarks.landmarks, S.reference.plane);
     if (S.truncated) S.warnings.push_back("scores: the mandible is truncated; asymmetry scores are not comparable");
     if (cranial.valid()) {
@@ -379,6 +383,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     surface::PointArrays arrays;
     arrays["mirror_distance_mm"] = S.mirror.per_vertex;
     arrays["saf_asymmetry"] = S.saf.per_vertex.empty() ? std::vector<double>(surf.mesh.vertices.size(), 0.0) : S.saf.per_vertex;
+    arrays["saf_asymmetry_sided"] = S.saf_sided.empty() ? std::vector<double>(surf.mesh.vertices.size(), 0.0) : S.saf_sided;
     std::vector<double> reg(regions.label.begin(), regions.label.end());
     arrays["region"] = reg;
     surface::write_vtp(surf.mesh, arrays, staging.path("mandible.vtp"));
@@ -396,13 +401,13 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     std::string views_note;
     if (figures_on) {
       // 3D views: mirror distance on a fixed +-3 mm scale (comparable between
-      // scans), SAF map on 0..0.25 rad.
+      // scans), the sided SAF map on 0..0.25 rad.
       reports::ColourMap mirror_cm{"mirror distance (mm)", -3.0, 3.0, true};
-      reports::ColourMap saf_cm{"SAF asymmetry (rad)", 0.0, 0.25, false};
+      reports::ColourMap saf_cm{"SAF map, sided (rad)", 0.0, 0.25, false};
       const auto rendered = reports::render_view_sets(
           surf.mesh,
           {{&S.mirror.per_vertex, mirror_cm, staging.path("qc/view_mirror")},
-           {&S.saf.per_vertex, saf_cm, staging.path("qc/view_saf")}},
+           {&S.saf_sided, saf_cm, staging.path("qc/view_saf")}},
           S.landmarks.landmarks, S.reference.plane, 520, 420, S.head_superior());
       for (const auto& rv : rendered) {
         if (!rv.error.empty()) {

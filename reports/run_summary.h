@@ -42,6 +42,10 @@ struct RunSummary {
   reference::CranialResult cranial;  // found = false when not fitted (reason) or --no-cranial
   asymmetry::SafResult saf;
   std::map<std::string, double> saf_regions;
+  // The SAF map with each mirror pair's value on the side that lies beyond its
+  // mirror image (asymmetry::sided_map), per output vertex, and its regional means.
+  std::vector<double> saf_sided;
+  std::map<std::string, double> saf_regions_sided;
   asymmetry::SrdResult srd;
   asymmetry::MirrorResult mirror;
   std::map<std::string, asymmetry::Bilateral> bilateral;

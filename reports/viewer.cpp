@@ -196,7 +196,7 @@ std::string viewer_section_html(const ViewerMesh& vm, const PlaneFrame& frame, c
     << "<div id=\"ms-viewer\" class=\"viewer\" data-viewer=\"loading\">\n"
     << "<div class=\"viewer-bar\"><span>Colour:</span> "
     << "<label><input type=\"radio\" name=\"ms-colour\" value=\"mirror\" checked> mirror distance</label> "
-    << "<label><input type=\"radio\" name=\"ms-colour\" value=\"saf\"> SAF map</label> "
+    << "<label><input type=\"radio\" name=\"ms-colour\" value=\"saf\"> SAF map (sided)</label> "
     << "<span class=\"sep\"></span><label><input type=\"checkbox\" id=\"ms-show-landmarks\" checked> landmarks</label> "
     << "<label><input type=\"checkbox\" id=\"ms-show-plane\" checked> symmetry plane</label> "
     << "<span class=\"sep\"></span><span>View:</span> "

@@ -317,7 +317,7 @@
     ticks[2].textContent = (diverging ? '+' : '') + fmt(r3[1]);
     captionEl.textContent = diverging ?
       'Signed mirror distance (mm): red where this side bulges beyond its mirror image, blue where it lies inside it.' :
-      'SAF map (rad): where the two sides differ in shape; marks a left/right region pair, not which side.';
+      'SAF map, sided (rad): where the two sides differ in shape, shown on the side that lies beyond its mirror image.';
   }
 
   // ---- controls ----

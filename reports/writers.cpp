@@ -231,6 +231,8 @@ json::Value results_json(const RunSummary& s) {
   for (const auto& [n, v] : s.saf.per_configuration) saf["per_configuration"][n] = v;
   saf["regions"] = Value::object();
   for (const auto& [n, v] : s.saf_regions) saf["regions"][n] = v;
+  saf["regions_sided"] = Value::object();
+  for (const auto& [n, v] : s.saf_regions_sided) saf["regions_sided"][n] = v;
   saf["correspondence_free"] = num_or_null(s.saf.correspondence_free, s.saf.correspondence_free >= 0);
   saf["skipped_configurations"] = Value::array();
   for (const auto& n : s.saf.skipped) saf["skipped_configurations"].push_back(n);
@@ -426,7 +428,7 @@ std::string viewer_html(const RunSummary& s) {
     return "<p class=\"muted\">Interactive 3D view not embedded: no surface with per-vertex results.</p>\n";
   try {
     const PlaneFrame frame = plane_frame(s.surface, s.reference.plane, s.head_superior());
-    const ViewerMesh vm = viewer_mesh(s.surface, s.mirror.per_vertex, s.saf.per_vertex, frame);
+    const ViewerMesh vm = viewer_mesh(s.surface, s.mirror.per_vertex, s.saf_sided, frame);
     return viewer_section_html(vm, frame, s.reference.plane, s.landmarks.landmarks);
   } catch (const std::exception& e) {
     return "<p class=\"muted\">Interactive 3D view not embedded: " + html_escape(e.what()) + "</p>\n";
@@ -580,21 +582,26 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   }
 
   h << "<h2>Regional asymmetry</h2>\n<table><tr><th>region</th><th>mirror mean |d| (mm)</th><th>RMS</th><th>p95</th>"
-       "<th>max</th><th>SAF map mean (rad)</th></tr>\n";
-  for (const auto& [n, st] : s.mirror.regions) {
-    auto it = s.saf_regions.find(n);
+       "<th>max</th><th>SAF map mean (rad)</th><th>SAF map, sided (rad)</th></tr>\n";
+  auto saf_cell = [](const std::map<std::string, double>& m, const std::string& n) {
+    const auto it = m.find(n);
+    return it != m.end() ? fixed(it->second, 3) : std::string();
+  };
+  for (const auto& [n, st] : s.mirror.regions)
     h << "<tr><td>" << E(n) << "</td><td>" << fixed(st.mean_abs) << "</td><td>" << fixed(st.rms) << "</td><td>"
-      << fixed(st.p95) << "</td><td>" << fixed(st.max) << "</td><td>"
-      << (it != s.saf_regions.end() ? fixed(it->second, 3) : "") << "</td></tr>\n";
-  }
-  h << "</table>\n";
+      << fixed(st.p95) << "</td><td>" << fixed(st.max) << "</td><td>" << saf_cell(s.saf_regions, n) << "</td><td>"
+      << saf_cell(s.saf_regions_sided, n) << "</td></tr>\n";
+  h << "</table>\n<p class=\"muted\">The SAF map compares each point with its mirror point, so a left/right pair of "
+       "regions carries the same value: it marks <em>where</em> the sides differ. The sided map (the 3D views) puts each "
+       "pair's value on the member that lies beyond its mirror image (signed mirror distance &gt; 0; shared where the "
+       "sides agree within 1 mm): the larger side, which is the abnormal one in an overgrowth and the normal one in an "
+       "underdevelopment.</p>\n";
 
   h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
   for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fixed(v, 4) << "</td></tr>\n";
   h << "</table>\n<p class=\"muted\">Correspondence-free SAF (secondary): "
     << (s.saf.correspondence_free >= 0 ? fixed(s.saf.correspondence_free, 4) : "n/a")
-    << " rad. The SAF comparison is symmetrised, so its map marks <em>where</em> the two sides differ (a left/right "
-       "region pair), not which side is abnormal; the signed mirror distance shows which side bulges.</p>\n";
+    << " rad.</p>\n";
   if (!s.srd.twins.empty()) {
     h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<table><tr><th>landmark</th><th>twin</th><th>twin mismatch (rad)</th>"
          "<th>handedness (rad)</th></tr>\n";

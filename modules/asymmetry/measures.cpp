@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 
 #include "geometry/mesh_geometry.h"
 
@@ -94,11 +95,25 @@ MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions
   MirrorResult r;
   const geometry::ClosestPointIndex index(mesh);
   const auto fn = geometry::face_normals(mesh);
-  r.per_vertex.resize(mesh.vertices.size());
+  const std::size_t n = mesh.vertices.size();
+  r.per_vertex.resize(n);
   // d(v) = signed distance of the reflection of v to the surface: the reflected
-  // surface at v lies inside this side where this side bulges (d > 0).
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i)
-    r.per_vertex[i] = geometry::signed_distance(index, fn, plane.reflect(mesh.vertices[i]));
+  // surface at v lies inside this side where this side bulges (d > 0). The
+  // closest point is v's mirror point σ(v).
+  std::vector<geometry::ClosestHit> hit(n);
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 q = plane.reflect(mesh.vertices[i]);
+    hit[i] = index.closest(q);
+    const double s = dot(q - hit[i].point, fn[static_cast<std::size_t>(hit[i].face)]);
+    r.per_vertex[i] = s < 0 ? -hit[i].distance : hit[i].distance;
+  }
+  r.at_mirror_point.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& f = mesh.faces[static_cast<std::size_t>(hit[i].face)];
+    r.at_mirror_point[i] = hit[i].bary[0] * r.per_vertex[f[0]] + hit[i].bary[1] * r.per_vertex[f[1]] +
+                           hit[i].bary[2] * r.per_vertex[f[2]];
+  }
   const auto w = vertex_areas(mesh);
   r.overall = distance_stats(r.per_vertex, w);
   for (std::size_t k = 0; k < regions.names.size(); ++k) {
@@ -122,6 +137,18 @@ std::map<std::string, double> regional_means(const std::vector<double>& values, 
   for (std::size_t i = 0; i < values.size() && i < regions.label.size(); ++i)
     if (regions.label[i] >= 0) s[regions.label[i]] += areas[i] * values[i], w[regions.label[i]] += areas[i];
   for (std::size_t k = 0; k < regions.names.size(); ++k) out[regions.names[k]] = w[k] > 0 ? s[k] / w[k] : 0.0;
+  return out;
+}
+
+std::vector<double> sided_map(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm) {
+  if (pair_map.size() != mirror.per_vertex.size() || mirror.at_mirror_point.size() != mirror.per_vertex.size())
+    throw std::invalid_argument("sided_map: one value per vertex in the map and the mirror distance");
+  if (!(share_mm > 0)) throw std::invalid_argument("sided_map: share_mm must be > 0");
+  std::vector<double> out(pair_map.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const double e = 0.5 * (mirror.per_vertex[i] - mirror.at_mirror_point[i]);
+    out[i] = (1.0 + std::clamp(e / share_mm, -1.0, 1.0)) * pair_map[i];
+  }
   return out;
 }
 

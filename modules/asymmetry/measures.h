@@ -32,6 +32,10 @@ DistanceStats distance_stats(const std::vector<double>& d, const std::vector<dou
 
 struct MirrorResult {
   std::vector<double> per_vertex;  // signed mm, + = this side bulges beyond its mirror
+  // d at each vertex's mirror point σ(v) (the closest surface point to its
+  // reflection; barycentric): about −d(v), exactly so only where the two sides
+  // are parallel.
+  std::vector<double> at_mirror_point;
   DistanceStats overall;
   std::map<std::string, DistanceStats> regions;
   // Signed distance at each landmark (its nearest vertex): which side bulges,
@@ -44,6 +48,17 @@ MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions
 // Area-weighted mean of a per-vertex value in each region.
 std::map<std::string, double> regional_means(const std::vector<double>& values, const std::vector<double>& areas,
                                              const Regions& regions);
+
+// The SAF map is symmetrised (a vertex and its mirror point carry nearly the
+// same value), so it marks a left/right pair of places, not a side. The sided
+// map gives each vertex its pair's value in proportion to how far the vertex
+// lies beyond its mirror point: 2 w a with w = ½(1 + clamp(e / share_mm, −1, 1))
+// and e = ½(d(v) − d(σ(v))) from the signed mirror distance — all of the pair's
+// value where this side bulges by share_mm or more, none where it lies that far
+// inside, half each where the sides agree. e is antisymmetric over a mutual
+// pair (σ(σ(v)) = v), whose two shares then sum to its value. The side is a
+// convention (the larger side), not a diagnosis: docs/method.md.
+std::vector<double> sided_map(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm = 1.0);
 
 struct Bilateral {
   double L = 0, R = 0, diff = 0, ratio = 0;  // diff = L - R, ratio = L / R

@@ -150,13 +150,11 @@ SafResult saf_on(const Mesh& mesh, const LandmarkSet& anchors, const Plane& plan
   std::vector<int> sigma;
   if (smoother) {
     vertex_mirror.resize(nv);
-    if (nv > 0) vertex_mirror[0] = index.closest(plane.reflect(mesh.vertices[0]));  // builds CGAL's search tree
 #pragma omp parallel for schedule(static)
-    for (long v = 1; v < static_cast<long>(nv); ++v)
+    for (long v = 0; v < static_cast<long>(nv); ++v)
       vertex_mirror[static_cast<std::size_t>(v)] = index.closest(plane.reflect(mesh.vertices[static_cast<std::size_t>(v)]));
   } else {
     sigma.resize(nf);
-    if (nf > 0) index.closest(plane.reflect(mesh.vertices[0]));  // builds CGAL's search tree
 #pragma omp parallel for schedule(static)
     for (long fl = 0; fl < static_cast<long>(nf); ++fl) {
       const std::size_t f = static_cast<std::size_t>(fl);

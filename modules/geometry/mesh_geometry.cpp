@@ -37,6 +37,9 @@ ClosestPointIndex::ClosestPointIndex(const Mesh& mesh) : impl_(std::make_unique<
   for (const auto& f : mesh.faces) impl_->triangles.emplace_back(P(f[0]), P(f[1]), P(f[2]));
   impl_->tree.rebuild(impl_->triangles.cbegin(), impl_->triangles.cend());
   impl_->tree.accelerate_distance_queries();
+  // CGAL builds the tree and its search structure on the first query, which
+  // is not thread-safe: build them here so that queries may run in parallel.
+  if (!mesh.vertices.empty() && !mesh.faces.empty()) closest(mesh.vertices[0]);
 }
 
 ClosestPointIndex::~ClosestPointIndex() = default;

@@ -225,7 +225,6 @@ Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const O
   double rms = 0;
   if (surface.faces.size() > 100) {
     const geometry::ClosestPointIndex index(surface);
-    index.closest(surface.vertices[0]);  // builds CGAL's search tree before the parallel queries
     const auto fn = geometry::face_normals(surface);
     const std::size_t step = std::max<std::size_t>(1, surface.vertices.size() / opt.icp_samples);
     // Huber rounds converge from far; then redescending (Cauchy) rounds let

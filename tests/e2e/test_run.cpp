@@ -191,6 +191,14 @@ TEST(EndToEnd, AsymmetricSampleScoresHigherOnSafAndMirrorDistance) {
   EXPECT_LT(diff, 6.0);
   const double sym_diff = sym.at("scores").at("bilateral").at("ramus_height_mm").at("diff").as_number();
   EXPECT_LT(std::abs(sym_diff), 1.0);
+  // The sided SAF map points to the longer side (METHOD.md §7): its largest
+  // regional mean is the left condyle (measured 0.076 against 0.045 on the
+  // right; the symmetrised map's own regions are 0.057 / 0.062, no side).
+  std::string largest;
+  double best = -1;
+  for (const auto& [name, v] : asym.at("scores").at("saf").at("regions_sided").items())
+    if (v.as_number() > best) best = v.as_number(), largest = name;
+  EXPECT_EQ(largest, "condyle_L");
 }
 
 // The SAF score is defined at 1 mm edges: a surface meshed at 2 mm is scored
