@@ -557,17 +557,19 @@ std::vector<T> crop_values(const std::vector<T>& v, const Geometry& g, const std
   return out;
 }
 
-// Sign of the first difference, in storage order, between a crop (n voxels
-// per axis) and its mirror along `axis`: < 0 when the crop comes first.
+// Sign of the first difference, in storage order, between the crop [lo, hi]
+// of a grid's values and its mirror along `axis`: < 0 when the crop comes
+// first. Usually decided within the first rows that hold the mask.
 template <typename T>
-int compare_with_mirror(const std::vector<T>& c, const long n[3], int axis) {
-  for (long k = 0; k < n[2]; ++k)
-    for (long j = 0; j < n[1]; ++j)
-      for (long i = 0; i < n[0]; ++i) {
+int compare_with_mirror(const std::vector<T>& v, const Geometry& g, const std::array<long, 3>& lo,
+                        const std::array<long, 3>& hi, int axis) {
+  for (long k = lo[2]; k <= hi[2]; ++k)
+    for (long j = lo[1]; j <= hi[1]; ++j)
+      for (long i = lo[0]; i <= hi[0]; ++i) {
         long x[3] = {i, j, k};
-        x[axis] = n[axis] - 1 - x[axis];
-        const T a = c[static_cast<std::size_t>(i + n[0] * (j + n[1] * k))];
-        const T b = c[static_cast<std::size_t>(x[0] + n[0] * (x[1] + n[1] * x[2]))];
+        x[axis] = lo[axis] + hi[axis] - x[axis];
+        const T a = v[g.linear(static_cast<std::size_t>(i), static_cast<std::size_t>(j), static_cast<std::size_t>(k))];
+        const T b = v[g.linear(static_cast<std::size_t>(x[0]), static_cast<std::size_t>(x[1]), static_cast<std::size_t>(x[2]))];
         if (a != b) return a < b ? -1 : 1;
       }
   return 0;
@@ -589,35 +591,27 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   const double widest_closing = std::max(opt.close_handles_mm, opt.close_handles_auto ? 3.0 : 0.0);
   const long margin = 3 * std::max({f[0], f[1], f[2]}) + static_cast<long>(std::ceil(widest_closing / finest)) + 1;
   std::array<long, 3> lo{}, hi{};
-  long n[3];
   for (int a = 0; a < 3; ++a) {
     lo[a] = std::max(0L, box.first[a] - margin);
     hi[a] = std::min(static_cast<long>(g.size[a]) - 1, box.second[a] + margin);
-    n[a] = hi[a] - lo[a] + 1;
   }
   int lateral = 0;  // the index axis nearest LPS x (direction's columns are the axes)
   for (int a = 1; a < 3; ++a)
     if (std::abs(g.direction[a]) > std::abs(g.direction[lateral])) lateral = a;
 
-  Mask crop;
-  crop.data = crop_values(mask.data, g, lo, hi, -1);
-  int order = compare_with_mirror(crop.data, n, lateral);
-  Volume guide;
-  if (opt.guide) {
-    guide.hu = crop_values(opt.guide->hu, g, lo, hi, -1);
-    if (order == 0) order = compare_with_mirror(guide.hu, n, lateral);
-  }
+  int order = compare_with_mirror(mask.data, g, lo, hi, lateral);
+  if (order == 0 && opt.guide) order = compare_with_mirror(opt.guide->hu, g, lo, hi, lateral);
   const bool flip = order > 0;
+  Mask crop;
+  crop.data = crop_values(mask.data, g, lo, hi, flip ? lateral : -1);
+  Volume guide;
+  if (opt.guide) guide.hu = crop_values(opt.guide->hu, g, lo, hi, flip ? lateral : -1);
   // The crop's grid; mirrored, the grid the unmirrored crop has in the
   // mirrored scan (its first index along the lateral axis is size - 1 - hi).
   std::array<long, 3> first = lo;
-  if (flip) {
-    first[lateral] = static_cast<long>(g.size[lateral]) - 1 - hi[lateral];
-    crop.data = crop_values(mask.data, g, lo, hi, lateral);
-    if (opt.guide) guide.hu = crop_values(opt.guide->hu, g, lo, hi, lateral);
-  }
+  if (flip) first[lateral] = static_cast<long>(g.size[lateral]) - 1 - hi[lateral];
   crop.geom = g;
-  for (int a = 0; a < 3; ++a) crop.geom.size[a] = static_cast<std::size_t>(n[a]);
+  for (int a = 0; a < 3; ++a) crop.geom.size[a] = static_cast<std::size_t>(hi[a] - lo[a] + 1);
   crop.geom.origin = g.index_to_lps(static_cast<double>(first[0]), static_cast<double>(first[1]), static_cast<double>(first[2]));
   guide.geom = crop.geom;
   Options o = opt;

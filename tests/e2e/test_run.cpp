@@ -416,7 +416,7 @@ TEST(EndToEnd, SurfaceFollowsTheCtOnlyWithItsOwnSegmentation) {
 // A symmetric head at an oblique pose is not mistaken for asymmetry: through
 // the whole chain (own segmentation, surface with its automatic handle
 // closing, detected landmarks) it scores below a head with the left ramus
-// 2 mm longer at the neutral pose. Measured 0.0041 vs 0.0114 rad (0.0050 vs
+// 2 mm longer at the neutral pose. Measured 0.0043 vs 0.0101 rad (0.0050 vs
 // 0.0125 before the SAF's disks were cut into the mesh); when the whole 2 mm
 // closing was kept (it fills creases differently left and right on the voxel
 // grid at that pose) 0.0193 vs 0.0127 (docs/method.md).
@@ -437,7 +437,11 @@ TEST(EndToEnd, ObliquePoseScoresBelowATwoMillimetreRamusDifference) {
   std::string scope_sym, scope_ramus;
   const double sym = score("oblique_symmetric", "--yaw -12 --roll 10", scope_sym);
   const double ramus = score("neutral_ramus2", "--ramus-L 2", scope_ramus);
-  EXPECT_EQ(scope_sym, "handles");  // teeth in contact make handles; only their plugs are kept
+  // Teeth in contact may make handles; then only their plugs are kept, never
+  // the whole closing. (Whether the voxel-diagonal contacts are handles at all
+  // is decided by marching cubes' ambiguous faces: since the surface is built
+  // in a canonical orientation, this pose meshes without any, 0.0043 rad.)
+  EXPECT_NE(scope_sym, "everywhere");
   EXPECT_LT(sym, 0.6 * ramus);
 }
 
