@@ -205,7 +205,9 @@ INSTANTIATE_TEST_SUITE_P(
                       SegCase{"1mm plus100HU", 1.0, 3, 3, false, 0, 100}, SegCase{"1mm minus100HU", 1.0, 3, 3, false, 0, -100},
                       SegCase{"1mm yaw12", 1.0, 3, 2.5, false, 12, 0},
                       // Teeth in full occlusion (gap 0): the lower crowns kept by their roots.
-                      SegCase{"0.8mm gap0 joint1 metal", 0.8, 0, 1, true, 0, 0}, SegCase{"0.8mm gap0 joint2.5 yaw10", 0.8, 0, 2.5, false, 10, 0}),
+                      SegCase{"0.8mm gap0 joint1 metal", 0.8, 0, 1, true, 0, 0}, SegCase{"0.8mm gap0 joint2.5 yaw10", 0.8, 0, 2.5, false, 10, 0},
+                      SegCase{"1mm gap0 joint1 metal", 1.0, 0, 1, true, 0, 0}, SegCase{"1mm gap0 joint2.5 yaw10", 1.0, 0, 2.5, false, 10, 0},
+                      SegCase{"0.4mm gap0 joint2.5 metal yaw10", 0.4, 0, 2.5, true, 10, 0}),
     [](const ::testing::TestParamInfo<SegCase>& i) {
       std::string n = i.param.name;
       for (auto& ch : n)
