@@ -102,8 +102,8 @@ const std::vector<Reference>& interpretation_references() {
       {"mandisym_phantoms",
        "MandiSym docs/method.md, \"What the SAF score separates\": SAF score of graded phantoms at four poses "
        "(ground-truth masks: symmetric 0.004-0.015 rad; ramus +2 mm 0.011-0.020; ramus +4 mm 0.022-0.030; body and "
-       "chin +2 mm 0.024 and above; through mandisym run, 1 mm and 0.8 mm with occlusion or metal: symmetric "
-       "0.002-0.010, ramus +2 mm 0.011-0.021, ramus +4 mm 0.021-0.022). Not clinical data."},
+       "chin +2 mm 0.024 and above; through mandisym run, 0.5-1 mm, with occlusion or metal: symmetric "
+       "0.002-0.007, ramus +2 mm 0.010-0.015, ramus +4 mm 0.021-0.023). Not clinical data."},
   };
   return refs;
 }
