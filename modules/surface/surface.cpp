@@ -527,8 +527,8 @@ static Result mesh_as_stored(const Mask& mask, const Options& opt) {
 // Decimation and CGAL's remeshing visit vertices and edges in an order that
 // follows the grid, so a scan stored mirrored (flipped left<->right) used to
 // mesh to another triangulation of the mirrored surface, and the SAF score of
-// the flipped scan differed by 3 % (ramus +2 mm) to 9 % (symmetric) through
-// the pipeline (docs/method.md, "Precision"). The surface is therefore built
+// the flipped scan differed by 1.2-5.3 % through the pipeline (docs/method.md,
+// "Precision"). The surface is therefore built
 // from the mask's crop in a canonical orientation: of the crop and its mirror
 // along the grid's lateral axis (the index axis nearest LPS x), the one that
 // is smaller in storage order (first differing voxel; the guiding CT's on a

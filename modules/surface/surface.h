@@ -87,6 +87,8 @@ struct Result {
   double largest_pull_mm = 0;       // the largest such move
 };
 
+// A mask and its mirror image along the grid's lateral axis give the same
+// mesh reflected (the crop is meshed in a canonical orientation; docs/surface.md).
 // Throws ms::Error(GeometryFailed) if the mask yields no surface.
 Result mesh_from_mask(const Mask& mask, const Options& options = {});
 
