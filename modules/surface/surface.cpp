@@ -578,6 +578,7 @@ int compare_with_mirror(const std::vector<T>& v, const Geometry& g, const std::a
 }  // namespace
 
 Result mesh_from_mask(const Mask& mask, const Options& opt) {
+  SurfaceLap lap;
   const Geometry& g = mask.geom;
   if (mask.data.size() != g.voxel_count()) throw Error(ExitCode::Internal, "surface: mask and grid disagree in size");
   const Box box = mask_box(mask);
@@ -616,6 +617,7 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   guide.geom = crop.geom;
   Options o = opt;
   if (opt.guide) o.guide = &guide;
+  lap(flip ? "orientation: crop, mirrored" : "orientation: crop, as stored");
 
   Result r = mesh_as_stored(crop, o);
   if (flip) {
