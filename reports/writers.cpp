@@ -362,7 +362,7 @@ std::string csv_quote(const std::string& x) {
 
 std::string csv_header() {
   return "study,status,saf_score,saf_correspondence_free,mirror_mean_mm,mirror_rms_mm,mirror_p95_mm,mirror_max_mm,"
-         "ramus_height_diff_mm,body_length_diff_mm,gonial_angle_diff_deg,truncated,warnings\n";
+         "ramus_height_diff_mm,body_length_diff_mm,gonial_angle_diff_deg,truncated,warnings,saf_largest_region_sided\n";
 }
 
 std::string csv_row(const RunSummary& s, const std::string& status) {
@@ -376,7 +376,14 @@ std::string csv_row(const RunSummary& s, const std::string& status) {
     << (s.saf.correspondence_free >= 0 ? fixed(s.saf.correspondence_free, 5) : "") << ',' << fixed(s.mirror.overall.mean_abs, 3)
     << ',' << fixed(s.mirror.overall.rms, 3) << ',' << fixed(s.mirror.overall.p95, 3) << ',' << fixed(s.mirror.overall.max, 3)
     << ',' << b("ramus_height_mm") << ',' << b("body_length_mm") << ',' << b("gonial_angle_deg") << ','
-    << (s.truncated ? "true" : "false") << ',' << s.warnings.size() << '\n';
+    << (s.truncated ? "true" : "false") << ',' << s.warnings.size() << ',';
+  // Where the sided SAF map is largest: the region and side the asymmetry
+  // concentrates on (docs/method.md, "A side for the SAF map").
+  std::string largest;
+  double best = -1;
+  for (const auto& [name, v] : s.saf_regions_sided)
+    if (v > best) best = v, largest = name;
+  o << q(largest) << '\n';
   return o.str();
 }
 

@@ -201,6 +201,14 @@ TEST(EndToEnd, AsymmetricSampleScoresHigherOnSafAndMirrorDistance) {
   for (const auto& [name, v] : asym.at("scores").at("saf").at("regions_sided").items())
     if (v.as_number() > best) best = v.as_number(), largest = name;
   EXPECT_EQ(largest, "condyle_L");
+  // The same region in the headline CSV's last column.
+  std::ifstream csv(fs::temp_directory_path() / ("mandisym_e2e_run_ramus_L_plus4mm_" + std::to_string(::getpid())) /
+                    "results.csv");  // the shared run's folder (results())
+  std::string header, row;
+  std::getline(csv, header);
+  std::getline(csv, row);
+  EXPECT_EQ(header.substr(header.rfind(',') + 1), "saf_largest_region_sided");
+  EXPECT_EQ(row.substr(row.rfind(',') + 1), "\"condyle_L\"");
 }
 
 // The SAF score is defined at 1 mm edges: a surface meshed at 2 mm is scored
