@@ -102,12 +102,8 @@ MirrorResult mirror_distance(const Mesh& mesh, const Plane& plane, const Regions
   // closest point is v's mirror point σ(v).
   std::vector<geometry::ClosestHit> hit(n);
 #pragma omp parallel for schedule(static)
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 q = plane.reflect(mesh.vertices[i]);
-    hit[i] = index.closest(q);
-    const double s = dot(q - hit[i].point, fn[static_cast<std::size_t>(hit[i].face)]);
-    r.per_vertex[i] = s < 0 ? -hit[i].distance : hit[i].distance;
-  }
+  for (std::size_t i = 0; i < n; ++i)
+    r.per_vertex[i] = geometry::signed_distance(index, fn, plane.reflect(mesh.vertices[i]), &hit[i]);
   r.at_mirror_point.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const auto& f = mesh.faces[static_cast<std::size_t>(hit[i].face)];

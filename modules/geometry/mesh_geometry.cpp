@@ -322,8 +322,9 @@ std::vector<int> geodesic_voronoi(const Mesh& m, const std::vector<int>& seeds, 
   return owner;
 }
 
-double signed_distance(const ClosestPointIndex& index, const std::vector<Vec3>& fn, const Vec3& q) {
+double signed_distance(const ClosestPointIndex& index, const std::vector<Vec3>& fn, const Vec3& q, ClosestHit* hit) {
   const ClosestHit h = index.closest(q);
+  if (hit) *hit = h;
   const double s = dot(q - h.point, fn[static_cast<std::size_t>(h.face)]);
   return s >= 0 ? h.distance : -h.distance;
 }

@@ -79,7 +79,8 @@ void dijkstra(const EdgeGraph& graph, const std::vector<int>& sources, double ra
 std::vector<int> geodesic_voronoi(const Mesh& mesh, const std::vector<int>& seed_vertices, std::vector<double>* dist = nullptr);
 
 // Signed distance of q to the mesh, positive outside (sign from the normal of
-// the closest triangle).
-double signed_distance(const ClosestPointIndex& index, const std::vector<Vec3>& face_normals, const Vec3& q);
+// the closest triangle); the closest point itself in *hit when asked.
+double signed_distance(const ClosestPointIndex& index, const std::vector<Vec3>& face_normals, const Vec3& q,
+                       ClosestHit* hit = nullptr);
 
 }  // namespace ms::geometry

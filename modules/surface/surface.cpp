@@ -474,10 +474,10 @@ static Result raw_mesh(const Contour& c, const Geometry& g, const Options& opt, 
   return r;
 }
 
-// The surface of a mask as stored (mesh_from_mask canonicalises the orientation first).
-static Result mesh_as_stored(const Mask& mask, const Options& opt) {
+// The surface of a mask as stored (mesh_from_mask canonicalises the
+// orientation first); box: mask_box(mask).
+static Result mesh_as_stored(const Mask& mask, const Box& box, const Options& opt) {
   const Geometry& g = mask.geom;
-  const Box box = mask_box(mask);
   // Automatic closing: the topology is decided on the undecimated contours
   // (the mask's own topology; decimating costs five times the contouring);
   // only the chosen one is decimated, repaired and remeshed.
@@ -619,7 +619,14 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   if (opt.guide) o.guide = &guide;
   lap(flip ? "orientation: crop, mirrored" : "orientation: crop, as stored");
 
-  Result r = mesh_as_stored(crop, o);
+  // The mask's box in the crop (mirrored: hi - x along the lateral axis).
+  Box in_crop;
+  for (int a = 0; a < 3; ++a) {
+    const bool m = flip && a == lateral;
+    in_crop.first[a] = m ? hi[a] - box.second[a] : box.first[a] - lo[a];
+    in_crop.second[a] = m ? hi[a] - box.first[a] : box.second[a] - lo[a];
+  }
+  Result r = mesh_as_stored(crop, in_crop, o);
   if (flip) {
     // Back through the grid's mid-plane across the lateral axis.
     const double mid = 0.5 * (static_cast<double>(g.size[lateral]) - 1.0);

@@ -56,12 +56,27 @@ Value load(const fs::path& p) {
   return Value::parse(s.str());
 }
 
+// The folder of a sample's shared run (results()).
+fs::path sample_run_dir(const std::string& sample) {
+  return fs::temp_directory_path() / ("mandisym_e2e_run_" + sample + "_" + std::to_string(::getpid()));
+}
+
+// The region where results.json's sided SAF map is largest.
+std::string largest_sided_region(const Value& saf) {
+  std::string name;
+  double best = -1;
+  for (const auto& [n, v] : saf.at("regions_sided").items())
+    if (v.as_number() > best) best = v.as_number(), name = n;
+  return name;
+}
+
 // One run per sample, shared by the tests below.
 const Value& results(const std::string& sample) {
   static std::map<std::string, Value> cache;
   auto it = cache.find(sample);
   if (it != cache.end()) return it->second;
-  const fs::path out = temp_dir("run_" + sample);
+  const fs::path out = sample_run_dir(sample);
+  fs::remove_all(out);
   const int code = run("run " + (kSamples / sample / "dicom").string() + " -o " + out.string() + " --quiet");
   EXPECT_EQ(code, 0) << sample;
   Value v = fs::exists(out / "results.json") ? load(out / "results.json") : Value();
@@ -196,14 +211,9 @@ TEST(EndToEnd, AsymmetricSampleScoresHigherOnSafAndMirrorDistance) {
   // The sided SAF map points to the longer side (METHOD.md §7): its largest
   // regional mean is the left condyle (measured 0.076 against 0.045 on the
   // right; the symmetrised map's own regions are 0.057 / 0.062, no side).
-  std::string largest;
-  double best = -1;
-  for (const auto& [name, v] : asym.at("scores").at("saf").at("regions_sided").items())
-    if (v.as_number() > best) best = v.as_number(), largest = name;
-  EXPECT_EQ(largest, "condyle_L");
+  EXPECT_EQ(largest_sided_region(asym.at("scores").at("saf")), "condyle_L");
   // The same region in the headline CSV's last column.
-  std::ifstream csv(fs::temp_directory_path() / ("mandisym_e2e_run_ramus_L_plus4mm_" + std::to_string(::getpid())) /
-                    "results.csv");  // the shared run's folder (results())
+  std::ifstream csv(sample_run_dir("ramus_L_plus4mm") / "results.csv");
   std::string header, row;
   std::getline(csv, header);
   std::getline(csv, row);
@@ -345,15 +355,8 @@ TEST(EndToEnd, MirroredScanSwapsTheSidesAndKeepsTheScores) {
   EXPECT_NEAR(rb, -ra, 0.01 * ra);
   EXPECT_EQ(r[0].at("mesh").at("vertices").as_number(), r[1].at("mesh").at("vertices").as_number());
   // The sided SAF map points to the changed side in both.
-  auto largest = [](const Value& saf) {
-    std::string name;
-    double best = -1;
-    for (const auto& [n, v] : saf.at("regions_sided").items())
-      if (v.as_number() > best) best = v.as_number(), name = n;
-    return name;
-  };
-  EXPECT_EQ(largest(a.at("saf")), "condyle_L");
-  EXPECT_EQ(largest(b.at("saf")), "condyle_R");
+  EXPECT_EQ(largest_sided_region(a.at("saf")), "condyle_L");
+  EXPECT_EQ(largest_sided_region(b.at("saf")), "condyle_R");
   fs::remove_all(ph);
 }
 
