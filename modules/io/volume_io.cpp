@@ -502,6 +502,22 @@ void check_meta_header(const std::string& path) {
     const std::string key = lower(raw_key);
     const std::string value = trim(line.substr(eq + 1));
     if (key == "elementdatafile") {
+      // A '%' makes the name a file-list pattern ("slice%03d.raw 1 40 1") that
+      // MetaIO hands to snprintf as the format, unchecked (found by fuzzing:
+      // "LOCA%000000000002" aborted in the format parser). Only one integer
+      // conversion, %d or %0Nd with N < 10, is a pattern; anything else is refused.
+      const std::string name = value.substr(0, value.find_first_of(" \t"));
+      if (value.find('%') != std::string::npos) {
+        const auto pc = name.find('%');
+        std::size_t k = pc == std::string::npos ? 0 : pc + 1;
+        if (k < name.size() && name[k] == '0') ++k;
+        if (k < name.size() && std::isdigit(static_cast<unsigned char>(name[k]))) ++k;
+        const bool one_int = pc != std::string::npos && k < name.size() && name[k] == 'd' &&
+                             name.find('%', k) == std::string::npos && value.find('%', name.size()) == std::string::npos;
+        if (!one_int)
+          throw Error(ExitCode::InputInvalid, path + ": MetaImage ElementDataFile '" + value.substr(0, 40) +
+                                                  "' is not a file name or a %d file-list pattern");
+      }
       // MetaIO allocates CompressedDataSize bytes before reading them (found
       // by fuzzing: 1.8e19): it must be one number no larger than the bytes
       // on disk (this file and a named data file).

@@ -691,6 +691,9 @@ TEST(BadInput, MalformedNrrdAndMetaImage) {
       {"binary_name.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_FLOAT\nCompressedData = True\n"
                           "ElementDataFile = " + std::string(120, '\xdc') + "LOCA%\nxx",
        "not text"},  // MetaIO read past a heap block on that name (strlen; found by fuzzing)
+      {"format_name.mha", "ObjectType = Image\nNDims = 3\nDimSize = 6 5 4\nElementType = MET_FLOAT\n"
+                          "ElementDataFile = LOCA%000000000002 2.5\nxx",
+       "file-list pattern"},  // MetaIO used the name as snprintf's format (found by fuzzing)
       {"terabytes.nrrd", "NRRD0004\ndimension: 3\nsizes: 100000 100000 100000\ntype: short\nencoding: raw\nendian: little\n\nx",
        "declares"},
   };
