@@ -304,7 +304,15 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     // 5. symmetry plane + reference configuration
     reference::Options ro_fit;
     ro_fit.superior = S.head_superior();  // asymmetry vectors in the head's frame, like the landmarks
-    S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh, ro_fit);
+    try {
+      S.reference = reference::fit(S.landmarks.landmarks, &surf.mesh, ro_fit);
+    } catch (const Error& e) {
+      if (e.code() != ExitCode::GeometryFailed || !seg.truncated) throw;
+      std::string missing;
+      for (const auto& m : S.landmarks.missing) missing += (missing.empty() ? "" : ", ") + m;
+      throw Error(ExitCode::GeometryFailed, std::string(e.what()) + ": the mandible is cut by the scan's edge (" + missing +
+                                                " missing); nothing to mirror one side onto the other");
+    }
     for (const auto& w : S.reference.warnings) S.warnings.push_back("reference: " + w);
     if (!args.has("no-cranial")) {
       // Cranial mid-sagittal plane (optional: a failure costs the plane, not

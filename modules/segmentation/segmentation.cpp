@@ -221,6 +221,62 @@ MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
   return out;
 }
 
+// A bone cut by the scan's edge is open there: its cortex ends at the cut, and
+// the cancellous interior reaches the grid's face, where hole filling takes it
+// for outside (a ramus cut by a field of view 20 mm off centre lost 24 of its
+// 77 cm3). Its own cross-section closes it: on each face of the grid listed in
+// `faces` (bit 2a: low face of axis a, bit 2a+1: high face), the background of
+// that face's slice not reachable from the slice's rim (8-connected when the
+// filling's 3D background is fully connected, else 4-connected) is the lid. With `inside` given, only holes
+// made wholly of its voxels are (cancellous bone, not the soft tissue a ring
+// of several bones encloses). Returns the lid's voxels, set in m.
+std::vector<std::size_t> cap_cut_faces(std::uint8_t* m, const Dims3& d, unsigned faces, bool fully_connected,
+                                       const std::uint8_t* inside = nullptr) {
+  std::vector<std::size_t> lid;
+  for (int a = 0; a < 3; ++a)
+    for (int hi = 0; hi < 2; ++hi) {
+      if (!(faces & (1u << (2 * a + hi)))) continue;
+      const int u = (a + 1) % 3, v = (a + 2) % 3;
+      const std::size_t nu = d[u], nv = d[v], w = hi ? d[a] - 1 : 0;
+      if (nu < 3 || nv < 3) continue;
+      auto at = [&](std::size_t i, std::size_t j) {
+        std::array<std::size_t, 3> q{};
+        q[a] = w, q[u] = i, q[v] = j;
+        return q[0] + d[0] * (q[1] + d[1] * q[2]);
+      };
+      std::vector<std::uint8_t> open(nu * nv, 0);
+      std::vector<std::size_t> stack;
+      auto push = [&](std::size_t i, std::size_t j) {
+        const std::size_t p = i + nu * j;
+        if (!open[p] && !m[at(i, j)]) open[p] = 1, stack.push_back(p);
+      };
+      for (std::size_t i = 0; i < nu; ++i) push(i, 0), push(i, nv - 1);
+      for (std::size_t j = 0; j < nv; ++j) push(0, j), push(nu - 1, j);
+      if (inside)
+        for (std::size_t j = 0; j < nv; ++j)
+          for (std::size_t i = 0; i < nu; ++i)
+            if (!inside[at(i, j)]) push(i, j);
+      while (!stack.empty()) {
+        const std::size_t p = stack.back();
+        stack.pop_back();
+        const std::size_t i = p % nu, j = p / nu;
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            if (!fully_connected && di != 0 && dj != 0) continue;
+            const long ii = static_cast<long>(i) + di, jj = static_cast<long>(j) + dj;
+            if (ii >= 0 && jj >= 0 && ii < static_cast<long>(nu) && jj < static_cast<long>(nv))
+              push(static_cast<std::size_t>(ii), static_cast<std::size_t>(jj));
+          }
+      }
+      for (std::size_t j = 0; j < nv; ++j)
+        for (std::size_t i = 0; i < nu; ++i) {
+          const std::size_t q = at(i, j);
+          if (!m[q] && !open[i + nu * j]) m[q] = 1, lid.push_back(q);
+        }
+    }
+  return lid;
+}
+
 // A sub-box of a grid: the voxels of a mask with a margin, where local work
 // (morphology, distances to the mask) needs to be done.
 struct Box {
@@ -594,6 +650,12 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     crop_cut[2 * a] = ctx.cut[2 * a] && region.GetIndex()[a] == 0;
     crop_cut[2 * a + 1] = ctx.cut[2 * a + 1] && region.GetIndex()[a] + static_cast<long>(region.GetSize()[a]) == long(g.size[a]);
   }
+  unsigned scan_edge = 0;  // faces of the bone crop on the scan's edge (cap_cut_faces)
+  for (int a = 0; a < 3; ++a) {
+    if (region.GetIndex()[a] == 0 && !ctx.cut[2 * a]) scan_edge |= 1u << (2 * a);
+    if (region.GetIndex()[a] + static_cast<long>(region.GetSize()[a]) == long(g.size[a]) && !ctx.cut[2 * a + 1])
+      scan_edge |= 1u << (2 * a + 1);
+  }
   bone = filled(bone.GetPointer(), true);
   lap("bone mask, crop, fill");
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
@@ -664,7 +726,10 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     const auto* b = bone->GetBufferPointer();
     const double dense_hu = offset + opt.dense_threshold_hu;
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) dn[i] = b[i] && hu_crop[i] >= dense_hu;
+    // A bone cut by the scan's edge: its cancellous interior, open at the cut, is closed there.
+    const std::vector<std::size_t> lid = cap_cut_faces(dn, cg.size, scan_edge, false, b);
     const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false);  // a thin shell must not leak diagonally
+    for (std::size_t i : lid) dn[i] = 0;
     // Fill only thick cavities (cancellous cores). A thin enclosed cavity is a
     // joint space or an occlusal gap wrapped by bone: filling it would weld
     // the condyle to its fossa, the lower teeth to the upper.
@@ -968,6 +1033,13 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   const double voxel_mm3 = g.voxel_volume_mm3();
   const double offset = r.offset_hu;
   const std::vector<float> hu_crop = crop_values(ct, region, cg);
+  // Faces of the box on the scan's edge: a mandible cut there is capped by its
+  // own cross-section before each hole filling (cap_cut_faces).
+  unsigned cut_faces = 0;
+  for (int a = 0; a < 3; ++a) {
+    if (region.GetIndex()[a] == 0) cut_faces |= 1u << (2 * a);
+    if (static_cast<std::size_t>(region.GetIndex()[a]) + region.GetSize()[a] == g.size[a]) cut_faces |= 1u << (2 * a + 1);
+  }
   // Surface at the half-maximum between soft tissue and cortical bone: the
   // 250 HU bone threshold lies outside the edge of a blurred cortex. Only
   // where the scan resolves the cortex (voxels up to 1.25 mm); the
@@ -984,6 +1056,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     auto hi_img = io::make_image<MaskImage>(cg);
     auto* h = hi_img->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) h[i] = hu_crop[i] >= (crop_mask[i] ? surface_hu : bone_hu);
+    cap_cut_faces(h, cg.size, cut_faces, true);
     const MaskImage::Pointer hi_filled = filled(hi_img.GetPointer(), true);
     const auto* fh = hi_filled->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && fh[i];
@@ -1000,6 +1073,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     close_ball(closed, cg.size, radius);
     std::copy(closed.begin(), closed.end(), mimg->GetBufferPointer());
   }
+  const std::vector<std::size_t> lid = cap_cut_faces(mimg->GetBufferPointer(), cg.size, cut_faces, true);
   const MaskImage::Pointer fill = filled(mimg.GetPointer(), true);
   if (r.surface_level_hu != 0) {
     // Where the boundary sits at the half-maximum (the scan resolves the
@@ -1014,6 +1088,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     auto* fo = fill->GetBufferPointer();
     const auto* cm = mimg->GetBufferPointer();
     for (std::size_t i = 0; i < crop_mask.size(); ++i) fo[i] = crop_mask[i] || (fo[i] && !cm[i]);
+    for (std::size_t i : lid) fo[i] = 1;
   }
 
   r.mask.geom = g;

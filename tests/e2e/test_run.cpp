@@ -307,6 +307,30 @@ TEST(EndToEnd, FailureAfterSegmentationLeavesNothing) {
   fs::remove_all(ph);
 }
 
+// A head 30 mm off centre: the scan's side cuts away the left condyle,
+// coronoid and angle. Nothing can be mirrored, so the run stops with exit 6
+// and one line that says why, and writes nothing; 20 mm off centre (the left
+// ramus cut, its landmarks inside) it completes with the truncation flagged
+// and scores withheld.
+TEST(EndToEnd, HeadCutBySideOfTheScanStopsOrWarns) {
+  const fs::path ph = temp_dir("cut_phantom"), out = temp_dir("cut_out");
+  ASSERT_EQ(run("phantom -o " + ph.string() + " --spacing 1.5 --shift 30,0,0 --no-preview"), 0);
+  std::string err;
+  EXPECT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string() + " -q --no-figures --no-cranial", &err), 6) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_NE(err.find("cut by the scan's edge (Co_L, Cr_L, Go_L missing)"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(out));
+  fs::remove_all(ph);
+  ASSERT_EQ(run("phantom -o " + ph.string() + " --spacing 1.5 --shift 20,0,0 --no-preview"), 0);
+  ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string() + " -q --no-figures --no-cranial", &err), 0) << err;
+  const Value r = load(out / "results.json");
+  EXPECT_TRUE(r.at("segmentation").at("truncated").as_bool());
+  EXPECT_TRUE(r.at("scores").at("saf").at("score").is_null());
+  EXPECT_GT(r.at("segmentation").at("volume_mm3").as_number(), 70000.0);  // 77.5 cm3 in the scan; 53 when the cut drained it
+  fs::remove_all(ph);
+  fs::remove_all(out);
+}
+
 // A run killed mid-way leaves its hidden staging folder; the next run into
 // the same folder removes it when its process is gone, and leaves one whose
 // process is alive (PID 1 always is) alone.
