@@ -40,6 +40,7 @@ const cli::CommandSpec& phantom_spec() {
        {"occlusal-gap", "MM", "gap between upper and lower teeth (0 = in occlusion)", "1"},
        {"joint-space", "MM", "TMJ space between condyle and glenoid fossa", "2.5"},
        {"metal", "", "amalgam fillings in the lower first molars, with streak artefacts", ""},
+       {"edentulous", "", "no teeth in either jaw (the alveolar bone is kept)", ""},
        {"mirror", "", "mirror the whole volume left<->right (ground truth follows)", ""},
        {"ramus-L", "MM", "ramus height change, patient left", "0"},
        {"ramus-R", "MM", "ramus height change, patient right", "0"},
@@ -119,6 +120,7 @@ int phantom_command(const cli::Args& a) {
   p.occlusal_gap_mm = a.number("occlusal-gap", p.occlusal_gap_mm);
   p.joint_space_mm = a.number("joint-space", p.joint_space_mm);
   p.metal = a.has("metal");
+  p.edentulous = a.has("edentulous");
   p.mirror = a.has("mirror");
   const char* sides[2] = {"L", "R"};
   for (int s = 0; s < 2; ++s) {
@@ -194,6 +196,7 @@ int phantom_command(const cli::Args& a) {
   params["occlusal_gap_mm"] = p.occlusal_gap_mm;
   params["joint_space_mm"] = p.joint_space_mm;
   params["metal"] = p.metal;
+  params["edentulous"] = p.edentulous;
   params["mirror"] = p.mirror;
   params["seed"] = static_cast<double>(p.seed);
   params["compression"] = spec.compression;

@@ -313,11 +313,13 @@ double Anatomy::teeth(const std::vector<Tooth>& set, const Vec3& p, bool crown_o
 }
 
 double Anatomy::lower_teeth(const Vec3& p, bool crown_only) const {
+  if (p_.edentulous) return kFar;
   if (p[2] > -15 || p[2] < -70 || p[1] < -90 || p[1] > 0) return kFar;
   return teeth(lower_, p, crown_only);
 }
 
 double Anatomy::upper_teeth(const Vec3& p, bool crown_only) const {
+  if (p_.edentulous) return kFar;
   if (p[2] < -50 || p[2] > 5 || p[1] < -92 || p[1] > 0) return kFar;
   return teeth(upper_, p, crown_only);
 }

@@ -120,6 +120,7 @@ Phantom generate(const PhantomParams& params) {
   check(P.noise_hu >= 0 && P.noise_hu <= 500, "noise_hu (0..500)");
   check(P.blur_mm >= 0 && P.blur_mm <= 5, "blur_mm (0..5)");
   check(P.occlusal_gap_mm >= 0 && P.occlusal_gap_mm <= 10, "occlusal_gap_mm (0..10)");
+  check(!(P.metal && P.edentulous), "metal fillings need teeth (not with edentulous)");
   check(P.joint_space_mm >= 0 && P.joint_space_mm <= 8, "joint_space_mm (0..8)");
   for (const auto& s : P.side) {
     check(std::abs(s.ramus_height_mm) <= 15, "ramus height asymmetry (|x| <= 15 mm)");

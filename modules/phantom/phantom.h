@@ -35,6 +35,7 @@ struct PhantomParams {
   double occlusal_gap_mm = 1.0;   // between upper and lower teeth; 0 = touching
   double joint_space_mm = 2.5;    // between condylar head and glenoid fossa
   bool metal = false;             // amalgam fillings in the first molars, with streaks
+  bool edentulous = false;        // no teeth in either jaw (alveolar bone kept)
   bool mirror = false;            // mirror the finished volume left<->right
   std::array<SideAsymmetry, 2> side{};  // [0] = left, [1] = right
   double chin_deviation_mm = 0;   // symphysis shift, + towards patient left

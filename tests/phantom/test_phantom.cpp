@@ -2,6 +2,7 @@
 // mask, its knobs must do what they say, and it must be deterministic.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -171,6 +172,24 @@ TEST(Phantom, MirrorFlipsVolumeAndSwapsLabels) {
   EXPECT_EQ(m.truth.side[1].ramus_height_mm, 4);  // the elongated side is now the right
   EXPECT_NEAR(m.truth.ramus_height_R, a.truth.ramus_height_L, 1e-9);
   EXPECT_GT(m.plane.normal[0], 0.9);  // still points to the patient's left
+}
+
+// Edentulous: no crowns anywhere (nothing above cortical bone's 1600 HU),
+// the mandible smaller by its teeth, metal refused (the fillings sit in teeth).
+TEST(Phantom, EdentulousJawsHaveNoTeeth) {
+  PhantomParams p = small();
+  p.noise_hu = 0;
+  p.blur_mm = 0;
+  const auto dentate = phantom::generate(p);
+  p.edentulous = true;
+  const auto ph = phantom::generate(p);
+  EXPECT_LE(*std::max_element(ph.ct.hu.begin(), ph.ct.hu.end()), 1700.0f);
+  EXPECT_GE(*std::max_element(dentate.ct.hu.begin(), dentate.ct.hu.end()), 2500.0f);
+  const double lost = 1.0 - static_cast<double>(ph.mandible.count()) / static_cast<double>(dentate.mandible.count());
+  EXPECT_GT(lost, 0.03);  // lower crowns: a few cm3
+  EXPECT_LT(lost, 0.25);
+  p.metal = true;
+  EXPECT_THROW(phantom::generate(p), std::invalid_argument);
 }
 
 TEST(Phantom, RejectsInvalidParameters) {
