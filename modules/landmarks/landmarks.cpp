@@ -281,8 +281,13 @@ Result detect(const Mesh& mesh, const Options& opt) {
       const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
       if (len < 1e-9) continue;
       const P2 out{dh / len, -da / len};  // outward normal of a counter-clockwise hull
-      if (out.a > cone) post.push_back({len, out});
-      if (-out.h > cone) inf.push_back({len, out});
+      // Each edge faces one way, the nearer of posterior and inferior: a
+      // ramus tilted back 18 degrees (gonial angle opened 8) has a lower
+      // posterior border facing 40 degrees below posterior, and in both cones
+      // it paired with the upper posterior border, whose bisector put gonion
+      // half-way up the ramus.
+      if (out.a > cone && out.a >= -out.h) post.push_back({len, out});
+      if (-out.h > cone && -out.h > out.a) inf.push_back({len, out});
     }
     double best_post = 0, best_inf = 0;
     for (const Edge& p : post)

@@ -510,8 +510,13 @@ LandmarkSet Anatomy::landmarks() const {
       const double dy = b[1] - a[1], dz = b[2] - a[2], len = std::hypot(dy, dz);
       if (len < 1e-9) continue;
       const Edge e{len, dz / len, -dy / len};  // outward normal of a counter-clockwise hull
-      if (e.ny > cone) post.push_back(e);  // +y: posterior
-      if (-e.nz > cone) inf.push_back(e);
+      // Each edge faces one way, the nearer of posterior and inferior (as the
+      // detector, docs/landmarks.md): with the gonial angle opened 8 degrees
+      // the lower posterior border faced 40 degrees below posterior, was in
+      // both cones, and paired with the upper posterior border put gonion
+      // half-way up the ramus.
+      if (e.ny > cone && e.ny >= -e.nz) post.push_back(e);  // +y: posterior
+      if (-e.nz > cone && -e.nz > e.ny) inf.push_back(e);
     }
     double best_len = -1, ny = 0, nz = -1;
     for (const Edge& pe : post)

@@ -26,6 +26,7 @@ struct Case {
   bool mirror;
   double ramus_L;  // mm
   double spacing;
+  double gonial_L = 0;  // degrees (opening the angle tilts the ramus back)
 };
 
 std::ostream& operator<<(std::ostream& o, const Case& c) { return o << c.name; }
@@ -48,6 +49,7 @@ TEST_P(LandmarkMatrix, LabelsEveryLandmarkOnTheRightSideNearTheTruth) {
   p.roll_deg = c.roll;
   p.mirror = c.mirror;
   p.side[0].ramus_height_mm = c.ramus_L;
+  p.side[0].gonial_angle_deg = c.gonial_L;
   p.occlusal_gap_mm = 2;
   p.noise_hu = 0;
   const auto ph = ms::phantom::generate(p);
@@ -94,7 +96,10 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"pitch_m20", 0, -20, 0, false, 0, 1.0}, Case{"roll_p20", 0, 0, 20, false, 0, 1.0},
                       Case{"roll_m20", 0, 0, -20, false, 0, 1.0}, Case{"combined", 12, -10, 8, false, 0, 1.0},
                       Case{"ramusL4", 0, 0, 0, false, 4, 1.0}, Case{"ramusL4_mirror", 0, 0, 0, true, 4, 1.0},
-                      Case{"ramusL6_posed_mirror", -10, 8, -6, true, 6, 1.0}, Case{"fine_0_8mm", 5, 5, 5, false, 2, 0.8}),
+                      Case{"ramusL6_posed_mirror", -10, 8, -6, true, 6, 1.0}, Case{"fine_0_8mm", 5, 5, 5, false, 2, 0.8},
+                      // Opened 10 degrees: the truth's gonion was half-way up the ramus
+                      // (22 mm off) until both sides classified each hull edge one way.
+                      Case{"gonialL10", 0, 0, 0, false, 0, 1.0, 10}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
 
 }  // namespace
