@@ -1396,7 +1396,40 @@ static Mask coarsen(const Mask& fine, const Geometry& g) {
   return m;
 }
 
+static Result segment_auto(const Volume& ct, const Options& opt);
+
+// An adult mandible is about 90-125 mm wide across the condyles. A whole
+// (untruncated) mask much narrower is likely another bone taken for it: with
+// 3 mm slab-averaged slices and the teeth 1 mm apart the mandible, welded to
+// the skull, had no core of its own and the maxilla's was taken (Dice 0.06,
+// 75 mm wide) without a word. Said, not refused: a child's mandible is
+// narrower.
+static void check_width(Result& r) {
+  if (r.truncated || r.voxels == 0) return;
+  const Geometry& g = r.mask.geom;
+  const Box b = bounding_box(r.mask.data.data(), g.size, 0);
+  double lo = 1e30, hi = -1e30;
+  for (std::size_t k = b.lo[2]; k < b.lo[2] + b.size[2]; ++k)
+    for (std::size_t j = b.lo[1]; j < b.lo[1] + b.size[1]; ++j)
+      for (std::size_t i = b.lo[0]; i < b.lo[0] + b.size[0]; ++i)
+        if (r.mask.data[g.linear(i, j, k)]) {
+          const double x = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k))[0];
+          lo = std::min(lo, x), hi = std::max(hi, x);
+        }
+  const double width = hi - lo + std::min(g.spacing[0], g.spacing[1]);
+  if (width < 80.0)
+    r.warnings.push_back("the structure taken for the mandible is only " + std::to_string(static_cast<int>(std::lround(width))) +
+                         " mm wide left to right (an adult mandible is about 90-125 mm across the condyles): it may be another "
+                         "bone; check the segmentation (thick slices with the teeth in occlusion: docs/segmentation.md)");
+}
+
 Result segment_mandible(const Volume& ct, const Options& opt) {
+  Result r = segment_auto(ct, opt);
+  check_width(r);
+  return r;
+}
+
+static Result segment_auto(const Volume& ct, const Options& opt) {
   const Geometry& g = ct.geom;
   const double native = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   GridContext whole;
