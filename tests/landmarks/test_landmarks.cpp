@@ -108,17 +108,32 @@ namespace {
 
 // A scan whose upper edge cuts the condyles: Co is reported missing rather
 // than placed on the cut, while the chin landmarks are still found.
-TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
+// The landmarks of a noise-free 1 mm phantom's ground-truth surface, detected
+// knowing the scan's grid (which cuts the mandible).
+struct CutScan {
+  ms::phantom::Phantom ph;
+  ms::Mesh mesh;
+  ms::landmarks::Result r;
+};
+CutScan landmarks_on_cut_scan(const ms::Vec3& fov, const ms::Vec3& shift) {
   ms::phantom::PhantomParams p;
   p.spacing = {1, 1, 1};
-  p.fov_mm = {150, 140, 130};
-  p.shift_mm = {0, 0, 52};  // head moved up: the grid's top cuts through the condylar necks
+  p.fov_mm = fov;
+  p.shift_mm = shift;
   p.noise_hu = 0;
-  const auto ph = ms::phantom::generate(p);
-  const auto surf = ms::surface::mesh_from_mask(ph.mandible);
+  CutScan c;
+  c.ph = ms::phantom::generate(p);
+  c.mesh = ms::surface::mesh_from_mask(c.ph.mandible).mesh;
   ms::landmarks::Options o;
-  o.scan_grid = &ph.mandible.geom;
-  const auto r = ms::landmarks::detect(surf.mesh, o);
+  o.scan_grid = &c.ph.mandible.geom;
+  c.r = ms::landmarks::detect(c.mesh, o);
+  return c;
+}
+
+TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
+  // Head moved up: the grid's top cuts through the condylar necks.
+  const CutScan c = landmarks_on_cut_scan({150, 140, 130}, {0, 0, 52});
+  const auto& r = c.r;
   EXPECT_FALSE(r.landmarks.has("Co_L"));
   EXPECT_FALSE(r.landmarks.has("Co_R"));
   EXPECT_TRUE(r.landmarks.has("Me"));
@@ -127,7 +142,7 @@ TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
   for (const auto& w : r.warnings) warned |= w.find("edge of the scan") != std::string::npos;
   EXPECT_TRUE(warned);
   // Without the scan grid the detector cannot know, and places them.
-  EXPECT_TRUE(ms::landmarks::detect(surf.mesh).landmarks.has("Co_L"));
+  EXPECT_TRUE(ms::landmarks::detect(c.mesh).landmarks.has("Co_L"));
 }
 
 // A head 30 mm off centre: the scan's side cuts the left condyle, coronoid and
@@ -136,19 +151,12 @@ TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
 // middle of what was left of the angle, 2.7 mm off — and the other side's are
 // where they belong.
 TEST(Landmarks, LandmarksNearALateralCutAreMissing) {
-  ms::phantom::PhantomParams p;
-  p.spacing = {1, 1, 1};
-  p.shift_mm = {30, 0, 0};
-  p.noise_hu = 0;
-  const auto ph = ms::phantom::generate(p);
-  const auto surf = ms::surface::mesh_from_mask(ph.mandible);
-  ms::landmarks::Options o;
-  o.scan_grid = &ph.mandible.geom;
-  const auto r = ms::landmarks::detect(surf.mesh, o);
+  const CutScan c = landmarks_on_cut_scan({150, 150, 140}, {30, 0, 0});
+  const auto& r = c.r;
   for (const char* n : {"Co_L", "Cr_L", "Go_L"}) EXPECT_FALSE(r.landmarks.has(n)) << n;
   for (const char* n : {"Co_R", "Cr_R", "Go_R", "Me", "Pog"}) {
     ASSERT_TRUE(r.landmarks.has(n)) << n;
-    EXPECT_LE(ms::norm(*r.landmarks.find(n) - *ph.landmarks.find(n)), 1.5) << n;
+    EXPECT_LE(ms::norm(*r.landmarks.find(n) - *c.ph.landmarks.find(n)), 1.5) << n;
   }
 }
 
