@@ -179,7 +179,30 @@ Plane mandible_plane(const Mesh& mesh) {
   reference::Options ro;
   ro.icp_rounds = 8;
   ro.icp_cauchy_mm = 0;  // a frame for labelling: the Huber fit is enough
-  Plane pl = reference::refine_plane_on_surface(mesh, Plane{c, Vec3{1, 0, 0}}, ro);
+  // The mirror-ICP converges from about 20 degrees off; a head turned 45
+  // degrees in the scanner (its plane 45 degrees from the scan's x axis) went
+  // elsewhere and left no left/right pair. So the start: of the planes
+  // through the centroid turned about the scan's vertical axis in 10 degree
+  // steps up to 60, the one whose reflection of a vertex sample lies closest
+  // to the surface (mean distance); the scan's x axis unless one more than 15
+  // degrees away is better (heads within that turn start as before).
+  Vec3 start{1, 0, 0};
+  if (mesh.faces.size() > 100) {
+    const geometry::ClosestPointIndex index(mesh);
+    const std::size_t step = std::max<std::size_t>(1, mesh.vertices.size() / 400);
+    double best = std::numeric_limits<double>::infinity();
+    int best_deg = 0;
+    for (int deg = -60; deg <= 60; deg += 10) {
+      const double a = deg * M_PI / 180.0;
+      const Plane pl{c, Vec3{std::cos(a), std::sin(a), 0}};
+      double sum = 0;
+      std::size_t cnt = 0;
+      for (std::size_t i = 0; i < mesh.vertices.size(); i += step, ++cnt) sum += norm(index.closest(pl.reflect(mesh.vertices[i])).point - pl.reflect(mesh.vertices[i]));
+      if (sum / static_cast<double>(cnt) < best) best = sum / static_cast<double>(cnt), best_deg = deg;
+    }
+    if (std::abs(best_deg) > 15) start = {std::cos(best_deg * M_PI / 180.0), std::sin(best_deg * M_PI / 180.0), 0};
+  }
+  Plane pl = reference::refine_plane_on_surface(mesh, Plane{c, start}, ro);
   if (pl.normal[0] < 0) pl.normal = -1.0 * pl.normal;
   pl.point = c - pl.signed_distance(c) * pl.normal;
   return pl;

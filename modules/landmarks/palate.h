@@ -33,7 +33,7 @@ struct PalateOptions {
   // well below cortical bone, so a candidate's peak only has to clear this.
   double plate_hu = 150;      // (add the scan's calibration offset)
   double air_hu = -400;       // air threshold (add the scan's calibration offset)
-  double max_tilt_deg = 35;   // steeper lines are not searched
+  double max_tilt_deg = 45;   // steeper lines are not searched
   double min_length_mm = 20;  // antero-posterior extent the supporting samples must span
   std::size_t min_samples = 20;
   double max_rms_mm = 1.5;

@@ -99,7 +99,11 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"ramusL6_posed_mirror", -10, 8, -6, true, 6, 1.0}, Case{"fine_0_8mm", 5, 5, 5, false, 2, 0.8},
                       // Opened 10 degrees: the truth's gonion was half-way up the ramus
                       // (22 mm off) until both sides classified each hull edge one way.
-                      Case{"gonialL10", 0, 0, 0, false, 0, 1.0, 10}),
+                      Case{"gonialL10", 0, 0, 0, false, 0, 1.0, 10},
+                      // Beyond the poses above: turned 45 degrees (the mirror-ICP from the
+                      // scan's x axis went elsewhere, no left/right pair) and pitched 40
+                      // degrees (the nasal floor tilted 40, beyond the 35 degree search).
+                      Case{"yaw_p45", 45, 0, 0, false, 0, 1.0}, Case{"pitch_p40", 0, 40, 0, false, 0, 1.0}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
 
 }  // namespace
