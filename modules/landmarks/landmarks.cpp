@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <limits>
 #include <queue>
 #include <array>
@@ -187,22 +188,22 @@ Plane mandible_plane(const Mesh& mesh) {
   // to the surface (mean distance); the scan's x axis unless one more than 15
   // degrees away is better (heads within that turn start as before).
   Vec3 start{1, 0, 0};
+  std::unique_ptr<geometry::ClosestPointIndex> index;  // built once, shared with the ICP
   if (mesh.faces.size() > 100) {
-    const geometry::ClosestPointIndex index(mesh);
+    index = std::make_unique<geometry::ClosestPointIndex>(mesh);
     const std::size_t step = std::max<std::size_t>(1, mesh.vertices.size() / 400);
     double best = std::numeric_limits<double>::infinity();
     int best_deg = 0;
     for (int deg = -60; deg <= 60; deg += 10) {
       const double a = deg * M_PI / 180.0;
       const Plane pl{c, Vec3{std::cos(a), std::sin(a), 0}};
-      double sum = 0;
-      std::size_t cnt = 0;
-      for (std::size_t i = 0; i < mesh.vertices.size(); i += step, ++cnt) sum += norm(index.closest(pl.reflect(mesh.vertices[i])).point - pl.reflect(mesh.vertices[i]));
-      if (sum / static_cast<double>(cnt) < best) best = sum / static_cast<double>(cnt), best_deg = deg;
+      double sum = 0;  // the same sample at every angle: sums compare as means
+      for (std::size_t i = 0; i < mesh.vertices.size(); i += step) sum += index->closest(pl.reflect(mesh.vertices[i])).distance;
+      if (sum < best) best = sum, best_deg = deg;
     }
     if (std::abs(best_deg) > 15) start = {std::cos(best_deg * M_PI / 180.0), std::sin(best_deg * M_PI / 180.0), 0};
   }
-  Plane pl = reference::refine_plane_on_surface(mesh, Plane{c, start}, ro);
+  Plane pl = reference::refine_plane_on_surface(mesh, Plane{c, start}, ro, nullptr, index.get());
   if (pl.normal[0] < 0) pl.normal = -1.0 * pl.normal;
   pl.point = c - pl.signed_distance(c) * pl.normal;
   return pl;

@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include <cmath>
+#include <memory>
 
 #include "core/error.h"
 #include "geometry/mesh_geometry.h"
@@ -209,7 +210,8 @@ void plane_frame(const Plane& plane, Vec3& e_ml, Vec3& e_ap, Vec3& e_si, const V
   e_ap = cross(e_si, e_ml);
 }
 
-Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const Options& opt, double* rms_mm) {
+Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const Options& opt, double* rms_mm,
+                              const geometry::ClosestPointIndex* shared_index) {
   double n[3] = {initial.normal[0], initial.normal[1], initial.normal[2]};
   {
     const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
@@ -224,7 +226,9 @@ Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const O
   };
   double rms = 0;
   if (surface.faces.size() > 100) {
-    const geometry::ClosestPointIndex index(surface);
+    std::unique_ptr<geometry::ClosestPointIndex> own;
+    if (!shared_index) own = std::make_unique<geometry::ClosestPointIndex>(surface);
+    const geometry::ClosestPointIndex& index = shared_index ? *shared_index : *own;
     const auto fn = geometry::face_normals(surface);
     const std::size_t step = std::max<std::size_t>(1, surface.vertices.size() / opt.icp_samples);
     // Huber rounds converge from far; then redescending (Cauchy) rounds let

@@ -17,6 +17,10 @@ namespace ms::geometry {
 class ClosestPointIndex;
 }
 
+namespace ms::geometry {
+class ClosestPointIndex;
+}
+
 namespace ms::reference {
 
 struct Options {
@@ -45,8 +49,9 @@ Result fit(const LandmarkSet& detected, const Mesh* surface, const Options& opti
 
 // Stage 2 alone: mirror-ICP of surface about a plane, from initial (converges
 // from about 20 degrees off). rms_mm (optional): final point-to-plane RMS.
+// index (optional): the surface's closest-point index, when the caller has one.
 Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const Options& options = {},
-                              double* rms_mm = nullptr);
+                              double* rms_mm = nullptr, const geometry::ClosestPointIndex* index = nullptr);
 
 // Cranial mid-sagittal plane (METHOD.md §5, optional): the cranium's own
 // mirror plane, by the same mirror-ICP from the mandible's plane, and where the

@@ -1407,8 +1407,6 @@ static Mask coarsen(const Mask& fine, const Geometry& g) {
   return m;
 }
 
-static Result segment_auto(const Volume& ct, const Options& opt);
-
 // An adult mandible is about 90-125 mm wide across the condyles. A whole
 // (untruncated) mask much narrower is likely another bone taken for it: with
 // 3 mm slab-averaged slices and the teeth 1 mm apart the mandible, welded to
@@ -1432,12 +1430,6 @@ static void check_width(Result& r) {
     r.warnings.push_back("the structure taken for the mandible is only " + std::to_string(static_cast<int>(std::lround(width))) +
                          " mm wide left to right (an adult mandible is about 90-125 mm across the condyles): it may be another "
                          "bone; check the segmentation (thick slices with the teeth in occlusion: docs/segmentation.md)");
-}
-
-Result segment_mandible(const Volume& ct, const Options& opt) {
-  Result r = segment_auto(ct, opt);
-  check_width(r);
-  return r;
 }
 
 static Result segment_auto(const Volume& ct, const Options& opt) {
@@ -1510,6 +1502,12 @@ static Result segment_auto(const Volume& ct, const Options& opt) {
   out.volume_mm3 = static_cast<double>(out.voxels) * g.voxel_volume_mm3();
   set_truncation(out);
   return out;
+}
+
+Result segment_mandible(const Volume& ct, const Options& opt) {
+  Result r = segment_auto(ct, opt);
+  check_width(r);
+  return r;
 }
 
 Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const std::string& source) {
