@@ -51,6 +51,7 @@ const cli::CommandSpec& phantom_spec() {
        {"condyle-L", "MM", "condylar head size change, left", "0"},
        {"condyle-R", "MM", "condylar head size change, right", "0"},
        {"chin", "MM", "chin (symphysis) deviation, + towards patient left", "0"},
+       {"scale", "F", "size of the whole head model, knobs included (0.6..1.4; 0.8 ~ a child's mandible)", "1"},
        {"seed", "N", "random seed", "1"},
        {"compression", "KIND", "DICOM transfer syntax: raw, jpeg-lossless, jpeg2000 (both lossless)", "raw"},
        {"no-preview", "", "do not write preview PNGs", ""},
@@ -130,6 +131,7 @@ int phantom_command(const cli::Args& a) {
     p.side[s].condyle_size_mm = a.number(std::string("condyle-") + sides[s], 0);
   }
   p.chin_deviation_mm = a.number("chin", 0);
+  p.scale = a.number("scale", 1);
   const double seed = a.number("seed", 1);
   if (seed < 0 || seed != std::floor(seed)) throw Error(ExitCode::Usage, "--seed: expected a non-negative integer");
   p.seed = static_cast<std::uint64_t>(seed);
@@ -198,6 +200,7 @@ int phantom_command(const cli::Args& a) {
   params["metal"] = p.metal;
   params["edentulous"] = p.edentulous;
   params["mirror"] = p.mirror;
+  params["scale"] = p.scale;
   params["seed"] = static_cast<double>(p.seed);
   params["compression"] = spec.compression;
   params["mandible_volume_mm3"] = ph.mandible.count() * ph.mandible.geom.voxel_volume_mm3();

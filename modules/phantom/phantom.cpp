@@ -129,12 +129,14 @@ Phantom generate(const PhantomParams& params) {
     check(s.condyle_size_mm >= -6 && s.condyle_size_mm <= 10, "condyle size asymmetry (-6..10 mm)");
   }
   check(std::abs(P.chin_deviation_mm) <= 15, "chin deviation (|x| <= 15 mm)");
+  check(P.scale >= 0.6 && P.scale <= 1.4, "scale (0.6..1.4)");
   check(std::abs(P.yaw_deg) <= 45 && std::abs(P.pitch_deg) <= 45 && std::abs(P.roll_deg) <= 45, "pose (|angle| <= 45 deg)");
 
   const Anatomy anat(P);
   const Mat3 R = rotation(P.yaw_deg, P.pitch_deg, P.roll_deg);
-  auto to_lps = [&](const Vec3& h) { return apply(R, h - kPivot) + P.shift_mm; };
-  auto to_head = [&](const Vec3& l) { return apply_t(R, l - P.shift_mm) + kPivot; };
+  const double s = P.scale;
+  auto to_lps = [&](const Vec3& h) { return apply(R, s * (h - kPivot)) + P.shift_mm; };
+  auto to_head = [&](const Vec3& l) { return (1.0 / s) * apply_t(R, l - P.shift_mm) + kPivot; };
 
   Phantom out;
   out.params = P;
@@ -148,7 +150,7 @@ Phantom generate(const PhantomParams& params) {
   out.ct.hu.assign(n, -1000.0f);
   out.mandible.geom = g;
   out.mandible.data.assign(n, 0);
-  const double w = (P.spacing[0] + P.spacing[1] + P.spacing[2]) / 3.0;
+  const double w = (P.spacing[0] + P.spacing[1] + P.spacing[2]) / 3.0 / s;  // a voxel in model mm
 
   const long nz = static_cast<long>(g.size[2]);
 #pragma omp parallel for schedule(dynamic, 1)

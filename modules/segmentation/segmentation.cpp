@@ -73,8 +73,11 @@ struct SegLap : DebugLap {
   SegLap() : DebugLap("MANDISYM_DEBUG_SEG", "seg") {}
 };
 
+// Soft tissue on a calibrated scan (HU).
+constexpr double kSoftTissueHu = 40.0;
+
 // Calibration offset: the soft-tissue peak of the histogram (expected near
-// 40 HU) within [-60, 160] HU. Returns 0 when there is no usable peak.
+// kSoftTissueHu) within [-60, 160] HU. Returns 0 when there is no usable peak.
 double estimate_offset(const Volume& ct, std::size_t* soft_voxels) {
   constexpr int lo = -60, hi = 160, bw = 4;
   std::vector<double> h((hi - lo) / bw + 1, 0.0);
@@ -94,7 +97,7 @@ double estimate_offset(const Volume& ct, std::size_t* soft_voxels) {
     }
   const std::size_t peak = static_cast<std::size_t>(std::max_element(sm.begin(), sm.end()) - sm.begin());
   if (peak == 0 || peak + 1 == sm.size()) return 0.0;  // no interior peak: leave calibration alone
-  return lo + (peak + 0.5) * bw - 40.0;
+  return lo + (peak + 0.5) * bw - kSoftTissueHu;
 }
 
 struct Features {
@@ -150,7 +153,7 @@ unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double 
     const double vol_cm3 = c.voxels * voxel_mm3 / 1000.0;
     const double w = c.extent(0) + 2 * shrink_mm, d = c.extent(1) + 2 * shrink_mm, h = c.extent(2) + 2 * shrink_mm;
     // A mandible with teeth is at most ~120 cm3: a larger core is still fused to the skull.
-    if (w < 55 || w > 170 || d < 55 || d > 170 || h < 45 || h > 160 || vol_cm3 < 2.0 || vol_cm3 > 150.0) continue;
+    if (w < 55 || w > 170 || d < 45 || d > 170 || h < 45 || h > 160 || vol_cm3 < 2.0 || vol_cm3 > 150.0) continue;
     // A mandible is wider (bicondylar) than it is tall (condylion to menton);
     // the cervical spine fused with the skull base is the reverse.
     if (h > 1.3 * w) continue;
@@ -622,7 +625,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   std::size_t soft = 0;
   const double offset = std::isnan(ctx.offset_hu) ? estimate_offset(ct, &soft) : ctx.offset_hu;
   if (std::abs(offset) > 50)
-    r.warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(40 + offset))) +
+    r.warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(kSoftTissueHu + offset))) +
                          " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
                          " HU (calibration offset?)");
   const double threshold = opt.bone_threshold_hu + offset;
@@ -1061,12 +1064,6 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     // its cortex is open, and the cancellous interior must not drain away
     // through the cut (it did: 0.8 mm, teeth in occlusion, 1 mm joint space,
     // 47 of 80 cm3 kept).
-    auto hi_img = io::make_image<MaskImage>(cg);
-    auto* h = hi_img->GetBufferPointer();
-    for (std::size_t i = 0; i < crop_mask.size(); ++i) h[i] = hu_crop[i] >= (crop_mask[i] ? surface_hu : bone_hu);
-    cap_cut_faces(h, cg.size, cut_faces, true);
-    const MaskImage::Pointer hi_filled = filled(hi_img.GetPointer(), true);
-    const auto* fh = hi_filled->GetBufferPointer();
     // The level moves the boundary in by the partial-volume layer only: a
     // voxel deeper than 1.5 voxels inside the mask stays whatever its value.
     // Where the cortex is faint (low-density bone), the shell above the level
@@ -1075,7 +1072,45 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
     const double step = std::max({cg.spacing[0], cg.spacing[1], cg.spacing[2]});
     const float deep = static_cast<float>(1.5 * step);
     const std::vector<float> depth = depth_inside(crop_mask.data(), cg.size, cg.spacing, deep + static_cast<float>(step));
-    for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = crop_mask[i] && (fh[i] || depth[i] > deep);
+    // The shell that encloses the interior is drawn at the local
+    // half-maximum where that is lower: half-way between soft tissue and the
+    // brightest mask voxel within two voxels. 700 HU is the half-maximum of a
+    // cortex of ~1400 HU; a cortex thinner than the voxels plus the scanner's
+    // blur (a child's mandible at 1 mm) peaks lower, its shell above 700 HU
+    // had gaps and the cancellous core of the thin parts drained (scale 0.7
+    // at 1 mm: 24.2 of 26.8 cm3 kept, Dice 0.90). The boundary itself stays
+    // at 700 HU: the voxels between the two levels are not kept, only what
+    // the shell encloses, so a blurred edge is not fattened (PSF sigma 1 mm
+    // with the local level as the boundary: Dice 0.966 -> 0.951).
+    const float soft_hu = static_cast<float>(offset + kSoftTissueHu);
+    const auto local_level = [&](std::size_t i) {
+      const long nx = static_cast<long>(cg.size[0]), ny = static_cast<long>(cg.size[1]), nz = static_cast<long>(cg.size[2]);
+      const long x = static_cast<long>(i % cg.size[0]), y = static_cast<long>((i / cg.size[0]) % cg.size[1]),
+                 z = static_cast<long>(i / (cg.size[0] * cg.size[1]));
+      float peak = hu_crop[i];
+      for (long c = std::max(0L, z - 2); c <= std::min(nz - 1, z + 2); ++c)
+        for (long b = std::max(0L, y - 2); b <= std::min(ny - 1, y + 2); ++b)
+          for (long a = std::max(0L, x - 2); a <= std::min(nx - 1, x + 2); ++a) {
+            const std::size_t q = static_cast<std::size_t>((c * ny + b) * nx + a);
+            if (crop_mask[q]) peak = std::max(peak, hu_crop[q]);
+          }
+      return std::min(static_cast<float>(surface_hu), 0.5f * (soft_hu + peak));
+    };
+    auto hi_img = io::make_image<MaskImage>(cg);
+    auto* h = hi_img->GetBufferPointer();
+    const long nvox = static_cast<long>(crop_mask.size());
+#pragma omp parallel for schedule(static)
+    for (long li = 0; li < nvox; ++li) {
+      const std::size_t i = static_cast<std::size_t>(li);
+      if (!crop_mask[i]) h[i] = hu_crop[i] >= bone_hu;
+      else if (hu_crop[i] >= surface_hu || depth[i] > deep) h[i] = 1;
+      else h[i] = hu_crop[i] >= local_level(i);
+    }
+    cap_cut_faces(h, cg.size, cut_faces, true);
+    const MaskImage::Pointer hi_filled = filled(hi_img.GetPointer(), true);
+    const auto* fh = hi_filled->GetBufferPointer();
+    for (std::size_t i = 0; i < crop_mask.size(); ++i)
+      crop_mask[i] = crop_mask[i] && (hu_crop[i] >= surface_hu || (fh[i] && !h[i]) || depth[i] > deep);
   }
   if (lap.on()) std::fprintf(stderr, "  after surface level: %zu voxels\n", static_cast<std::size_t>(std::count(crop_mask.begin(), crop_mask.end(), 1)));
   lap("surface level");
@@ -1428,7 +1463,7 @@ static void check_width(Result& r) {
   const double width = hi - lo + std::min(g.spacing[0], g.spacing[1]);
   if (width < 80.0)
     r.warnings.push_back("the structure taken for the mandible is only " + std::to_string(static_cast<int>(std::lround(width))) +
-                         " mm wide left to right (an adult mandible is about 90-125 mm across the condyles): it may be another "
+                         " mm wide left to right (an adult mandible is about 90-125 mm across the condyles, a young child's from about 75): it may be another "
                          "bone; check the segmentation (thick slices with the teeth in occlusion: docs/segmentation.md)");
 }
 

@@ -27,6 +27,7 @@ struct Case {
   double ramus_L;  // mm
   double spacing;
   double gonial_L = 0;  // degrees (opening the angle tilts the ramus back)
+  double scale = 1;     // size of the head model (0.7: a young child's mandible)
 };
 
 std::ostream& operator<<(std::ostream& o, const Case& c) { return o << c.name; }
@@ -50,6 +51,7 @@ TEST_P(LandmarkMatrix, LabelsEveryLandmarkOnTheRightSideNearTheTruth) {
   p.mirror = c.mirror;
   p.side[0].ramus_height_mm = c.ramus_L;
   p.side[0].gonial_angle_deg = c.gonial_L;
+  p.scale = c.scale;
   p.occlusal_gap_mm = 2;
   p.noise_hu = 0;
   const auto ph = ms::phantom::generate(p);
@@ -103,7 +105,11 @@ INSTANTIATE_TEST_SUITE_P(
                       // Beyond the poses above: turned 45 degrees (the mirror-ICP from the
                       // scan's x axis went elsewhere, no left/right pair) and pitched 40
                       // degrees (the nasal floor tilted 40, beyond the 35 degree search).
-                      Case{"yaw_p45", 45, 0, 0, false, 0, 1.0}, Case{"pitch_p40", 0, 40, 0, false, 0, 1.0}),
+                      Case{"yaw_p45", 45, 0, 0, false, 0, 1.0}, Case{"pitch_p40", 0, 40, 0, false, 0, 1.0},
+                      // A small child's mandible (0.65 of the adult model): Go_R was missing
+                      // while the gonial tangents had to be 15 mm long, not a fifth of the side.
+                      Case{"child_0_65", 0, 0, 0, false, 0, 1.0, 0, 0.65},
+                      Case{"child_0_75_posed_ramusL3", 8, 6, -5, false, 3, 1.0, 0, 0.75}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.name); });
 
 }  // namespace

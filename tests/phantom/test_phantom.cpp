@@ -192,6 +192,29 @@ TEST(Phantom, EdentulousJawsHaveNoTeeth) {
   EXPECT_THROW(phantom::generate(p), std::invalid_argument);
 }
 
+// --scale shrinks the whole anatomy about the point between the condylar
+// heads (the plane's point): every landmark's offset from it scales, the
+// mask's volume with the cube, and the landmarks stay on the mask.
+TEST(Phantom, ScaleShrinksTheWholeAnatomyAboutTheCondyles) {
+  PhantomParams p = small();
+  p.noise_hu = 0;
+  const auto adult = phantom::generate(p);
+  p.scale = 0.7;
+  const auto child = phantom::generate(p);
+  expect_landmarks_on_surface(child);
+  EXPECT_NEAR(distance(child.plane.point, adult.plane.point), 0.3 * norm(adult.plane.point - Vec3{0, 0, 0}) , 1e-9);
+  for (const auto& [name, q] : adult.landmarks.points) {
+    const Vec3* c = child.landmarks.find(name);
+    ASSERT_NE(c, nullptr) << name;
+    const Vec3 want = adult.plane.point + 0.7 * (q - adult.plane.point);
+    EXPECT_LT(distance(*c - child.plane.point, want - adult.plane.point), 1e-6) << name;
+  }
+  const double ratio = static_cast<double>(child.mandible.count()) / static_cast<double>(adult.mandible.count());
+  EXPECT_NEAR(ratio, 0.343, 0.02);
+  p.scale = 0.5;
+  EXPECT_THROW(phantom::generate(p), std::invalid_argument);
+}
+
 TEST(Phantom, RejectsInvalidParameters) {
   PhantomParams p = small();
   p.spacing = {0.0, 1, 1};
