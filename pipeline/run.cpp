@@ -226,6 +226,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   segmentation::Result seg;
   surface::Result surf;
   asymmetry::Regions regions;
+  std::vector<double> saf_lateral;  // asymmetry::lateral_map per output vertex (VTP)
   // Work that only writes outputs runs beside the next stages on the second
   // core (the surface stage is mostly one thread); joined before the report.
   // Declared after what they read (`scan`, `seg`, `surf`) and after `staging`:
@@ -361,6 +362,8 @@ int run_command(const cli::Args& args, const std::string& command_line) {
       S.saf_regions = asymmetry::regional_means(S.saf.per_vertex, areas, regions);
       S.saf_sided = asymmetry::sided_map(S.saf.per_vertex, S.mirror);
       S.saf_regions_sided = asymmetry::regional_means(S.saf_sided, areas, regions);
+      saf_lateral = asymmetry::lateral_map(S.saf.per_vertex, S.mirror);
+      S.saf_regions_lateral = asymmetry::regional_means(saf_lateral, areas, regions);
     }
     S.bilateral = asymmetry::bilateral_measures(S.landmarks.landmarks, S.reference.plane);
     if (S.truncated) S.warnings.push_back("scores: the mandible is truncated; asymmetry scores are not comparable");
@@ -392,6 +395,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     arrays["mirror_distance_mm"] = S.mirror.per_vertex;
     arrays["saf_asymmetry"] = S.saf.per_vertex.empty() ? std::vector<double>(surf.mesh.vertices.size(), 0.0) : S.saf.per_vertex;
     arrays["saf_asymmetry_sided"] = S.saf_sided.empty() ? std::vector<double>(surf.mesh.vertices.size(), 0.0) : S.saf_sided;
+    arrays["saf_asymmetry_lateral"] = saf_lateral.empty() ? std::vector<double>(surf.mesh.vertices.size(), 0.0) : saf_lateral;
     std::vector<double> reg(regions.label.begin(), regions.label.end());
     arrays["region"] = reg;
     surface::write_vtp(surf.mesh, arrays, staging.path("mandible.vtp"));

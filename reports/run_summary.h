@@ -46,6 +46,9 @@ struct RunSummary {
   // mirror image (asymmetry::sided_map), per output vertex, and its regional means.
   std::vector<double> saf_sided;
   std::map<std::string, double> saf_regions_sided;
+  // Its lateral form (asymmetry::lateral_map): regional means, > 0 on the
+  // larger side; the largest names the region and side.
+  std::map<std::string, double> saf_regions_lateral;
   asymmetry::SrdResult srd;
   asymmetry::MirrorResult mirror;
   std::map<std::string, asymmetry::Bilateral> bilateral;

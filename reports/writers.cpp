@@ -233,6 +233,9 @@ json::Value results_json(const RunSummary& s) {
   for (const auto& [n, v] : s.saf_regions) saf["regions"][n] = v;
   saf["regions_sided"] = Value::object();
   for (const auto& [n, v] : s.saf_regions_sided) saf["regions_sided"][n] = v;
+  saf["regions_lateral"] = Value::object();
+  for (const auto& [n, v] : s.saf_regions_lateral) saf["regions_lateral"][n] = v;
+  if (!s.saf_regions_lateral.empty()) saf["largest_region_sided"] = asymmetry::largest_region(s.saf_regions_lateral);
   saf["correspondence_free"] = num_or_null(s.saf.correspondence_free, s.saf.correspondence_free >= 0);
   saf["skipped_configurations"] = Value::array();
   for (const auto& n : s.saf.skipped) saf["skipped_configurations"].push_back(n);
@@ -377,13 +380,9 @@ std::string csv_row(const RunSummary& s, const std::string& status) {
     << ',' << fixed(s.mirror.overall.rms, 3) << ',' << fixed(s.mirror.overall.p95, 3) << ',' << fixed(s.mirror.overall.max, 3)
     << ',' << b("ramus_height_mm") << ',' << b("body_length_mm") << ',' << b("gonial_angle_deg") << ','
     << (s.truncated ? "true" : "false") << ',' << s.warnings.size() << ',';
-  // Where the sided SAF map is largest: the region and side the asymmetry
-  // concentrates on (docs/method.md, "A side for the SAF map").
-  std::string largest;
-  double best = -1;
-  for (const auto& [name, v] : s.saf_regions_sided)
-    if (v > best) best = v, largest = name;
-  o << q(largest) << '\n';
+  // Where the SAF map is larger on one side than on the other: the region and
+  // side the asymmetry concentrates on (docs/method.md, "A side for the SAF map").
+  o << q(asymmetry::largest_region(s.saf_regions_lateral)) << '\n';
   return o.str();
 }
 
@@ -589,7 +588,7 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   }
 
   h << "<h2>Regional asymmetry</h2>\n<table><tr><th>region</th><th>mirror mean |d| (mm)</th><th>RMS</th><th>p95</th>"
-       "<th>max</th><th>SAF map mean (rad)</th><th>SAF map, sided (rad)</th></tr>\n";
+       "<th>max</th><th>SAF map mean (rad)</th><th>SAF map, sided (rad)</th><th>lateral (rad)</th></tr>\n";
   auto saf_cell = [](const std::map<std::string, double>& m, const std::string& n) {
     const auto it = m.find(n);
     return it != m.end() ? fixed(it->second, 3) : std::string();
@@ -597,12 +596,15 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   for (const auto& [n, st] : s.mirror.regions)
     h << "<tr><td>" << E(n) << "</td><td>" << fixed(st.mean_abs) << "</td><td>" << fixed(st.rms) << "</td><td>"
       << fixed(st.p95) << "</td><td>" << fixed(st.max) << "</td><td>" << saf_cell(s.saf_regions, n) << "</td><td>"
-      << saf_cell(s.saf_regions_sided, n) << "</td></tr>\n";
+      << saf_cell(s.saf_regions_sided, n) << "</td><td>" << saf_cell(s.saf_regions_lateral, n) << "</td></tr>\n";
   h << "</table>\n<p class=\"muted\">The SAF map compares each point with its mirror point, so a left/right pair of "
        "regions carries the same value: it marks <em>where</em> the sides differ. The sided map (the 3D views) puts each "
        "pair's value on the member that lies beyond its mirror image (signed mirror distance &gt; 0; shared where the "
        "sides agree within 1 mm): the larger side, which is the abnormal one in an overgrowth and the normal one in an "
-       "underdevelopment.</p>\n";
+       "underdevelopment. Lateral: the sided value minus its mirror region's (positive on the larger side); its largest "
+       "region is where the asymmetry concentrates"
+    << (s.saf_regions_lateral.empty() ? std::string() : ": " + E(asymmetry::largest_region(s.saf_regions_lateral)))
+    << ".</p>\n";
 
   h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
   for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fixed(v, 4) << "</td></tr>\n";

@@ -1,6 +1,7 @@
 #include "asymmetry/measures.h"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -136,16 +137,39 @@ std::map<std::string, double> regional_means(const std::vector<double>& values, 
   return out;
 }
 
-std::vector<double> sided_map(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm) {
+namespace {
+// e(v) / share_mm clamped to [-1, 1], e = half the difference of the signed
+// mirror distances at v and at its mirror point.
+std::vector<double> side_weights(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm,
+                                 const char* who) {
   if (pair_map.size() != mirror.per_vertex.size() || mirror.at_mirror_point.size() != mirror.per_vertex.size())
-    throw std::invalid_argument("sided_map: one value per vertex in the map and the mirror distance");
-  if (!(share_mm > 0)) throw std::invalid_argument("sided_map: share_mm must be > 0");
-  std::vector<double> out(pair_map.size());
-  for (std::size_t i = 0; i < out.size(); ++i) {
-    const double e = 0.5 * (mirror.per_vertex[i] - mirror.at_mirror_point[i]);
-    out[i] = (1.0 + std::clamp(e / share_mm, -1.0, 1.0)) * pair_map[i];
-  }
+    throw std::invalid_argument(std::string(who) + ": one value per vertex in the map and the mirror distance");
+  if (!(share_mm > 0)) throw std::invalid_argument(std::string(who) + ": share_mm must be > 0");
+  std::vector<double> w(pair_map.size());
+  for (std::size_t i = 0; i < w.size(); ++i)
+    w[i] = std::clamp(0.5 * (mirror.per_vertex[i] - mirror.at_mirror_point[i]) / share_mm, -1.0, 1.0);
+  return w;
+}
+}  // namespace
+
+std::vector<double> sided_map(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm) {
+  std::vector<double> out = side_weights(pair_map, mirror, share_mm, "sided_map");
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = (1.0 + out[i]) * pair_map[i];
   return out;
+}
+
+std::vector<double> lateral_map(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm) {
+  std::vector<double> out = side_weights(pair_map, mirror, share_mm, "lateral_map");
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = 2.0 * out[i] * pair_map[i];
+  return out;
+}
+
+std::string largest_region(const std::map<std::string, double>& regional) {
+  std::string best;
+  double top = -std::numeric_limits<double>::infinity();
+  for (const auto& [name, v] : regional)
+    if (v > top) top = v, best = name;
+  return best;
 }
 
 std::map<std::string, Bilateral> bilateral_measures(const LandmarkSet& lm, const Plane& plane) {

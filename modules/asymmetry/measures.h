@@ -60,6 +60,17 @@ std::map<std::string, double> regional_means(const std::vector<double>& values, 
 // convention (the larger side), not a diagnosis: docs/method.md.
 std::vector<double> sided_map(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm = 1.0);
 
+// Which side, and where: the sided map minus its value at the mirror point,
+// l(v) = 2 a clamp(e / share_mm, -1, 1) (= 2 (sided - pair) where sigma is
+// mutual): > 0 on the member of a pair that lies beyond its mirror, the
+// opposite on the other, 0 where the sides agree. Its regional means are
+// antisymmetric over a left/right region pair; the largest is the region where
+// the larger side carries most of the SAF map's difference (docs/method.md).
+std::vector<double> lateral_map(const std::vector<double>& pair_map, const MirrorResult& mirror, double share_mm = 1.0);
+
+// The region with the largest value of a regional map ("" when empty).
+std::string largest_region(const std::map<std::string, double>& regional);
+
 struct Bilateral {
   double L = 0, R = 0, diff = 0, ratio = 0;  // diff = L - R, ratio = L / R
 };

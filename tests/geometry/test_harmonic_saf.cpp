@@ -832,6 +832,12 @@ TEST(Saf, SidedMapSharesEachPairsValueByTheSignedMirrorDistance) {
   const std::vector<double> want{2.0, 0.0, 1.0, 1.5, 1.5, 1.5};
   for (std::size_t i = 0; i < s.size(); ++i) EXPECT_NEAR(s[i], want[i], 1e-12) << i;
   EXPECT_THROW(as::sided_map({1, 1}, d), std::invalid_argument);
+  // The lateral map: the sided value minus the mirror member's, 2 a w.
+  const auto l = as::lateral_map({1, 1, 1, 1, 2, 1}, d, 1.0);
+  const std::vector<double> want_l{2.0, -2.0, 0.0, 1.0, -1.0, 1.0};
+  for (std::size_t i = 0; i < l.size(); ++i) EXPECT_NEAR(l[i], want_l[i], 1e-12) << i;
+  EXPECT_EQ(as::largest_region({{"angle_L", -0.2}, {"angle_R", 0.2}, {"condyle_L", 0.05}}), "angle_R");
+  EXPECT_EQ(as::largest_region({}), "");
 
   // A boomerang with its left (+x) arm 20 % longer: the SAF map is nearly
   // the same on both arms (it marks the pair: 130 / 127), the sided map leans
@@ -846,16 +852,21 @@ TEST(Saf, SidedMapSharesEachPairsValueByTheSignedMirrorDistance) {
   none.label.assign(m.vertices.size(), -1);
   const auto mirror = as::mirror_distance(m, pl, none);
   const auto sided = as::sided_map(r.per_vertex, mirror);
+  const auto lateral = as::lateral_map(r.per_vertex, mirror);
   const auto area = as::vertex_areas(m);
-  double pair_l = 0, pair_r = 0, sided_l = 0, sided_r = 0;
+  double pair_l = 0, pair_r = 0, sided_l = 0, sided_r = 0, lat_l = 0, lat_r = 0;
   for (std::size_t v = 0; v < m.vertices.size(); ++v) {
     const bool left = pl.signed_distance(m.vertices[v]) > 0;
     (left ? pair_l : pair_r) += area[v] * r.per_vertex[v];
     (left ? sided_l : sided_r) += area[v] * sided[v];
+    (left ? lat_l : lat_r) += area[v] * lateral[v];
   }
-  std::printf("pair map L %.4f R %.4f, sided L %.4f R %.4f\n", pair_l, pair_r, sided_l, sided_r);
+  std::printf("pair map L %.4f R %.4f, sided L %.4f R %.4f, lateral L %.4f R %.4f\n", pair_l, pair_r, sided_l, sided_r,
+              lat_l, lat_r);
   EXPECT_NEAR(pair_l / pair_r, 1.0, 0.1);
   EXPECT_GT(sided_l, 1.25 * sided_r);
+  EXPECT_GT(lat_l, 0.0);  // the longer arm carries the difference
+  EXPECT_LT(lat_r, 0.0);
 }
 
 }  // namespace

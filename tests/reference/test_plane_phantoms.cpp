@@ -143,7 +143,7 @@ INSTANTIATE_TEST_SUITE_P(Series, GradedRamus,
 namespace {
 struct SafOutcome {
   double score = 0;
-  std::string largest_sided;  // region with the largest mean of the sided SAF map
+  std::string largest_sided;  // region with the largest mean of the lateral SAF map
 };
 
 SafOutcome saf_outcome(const Case& c) {
@@ -155,20 +155,18 @@ SafOutcome saf_outcome(const Case& c) {
       ms::asymmetry::compute_saf(surf.mesh, ms::asymmetry::saf_anchors(lm.landmarks, ref.reference), ref.plane);
   const auto regions = ms::asymmetry::assign_regions(surf.mesh, lm.landmarks);
   const auto mirror = ms::asymmetry::mirror_distance(surf.mesh, ref.plane, regions);
-  const auto means = ms::asymmetry::regional_means(ms::asymmetry::sided_map(r.per_vertex, mirror),
+  const auto means = ms::asymmetry::regional_means(ms::asymmetry::lateral_map(r.per_vertex, mirror),
                                                    ms::asymmetry::vertex_areas(surf.mesh), regions);
-  SafOutcome o{r.score, ""};
-  double best = -1;
-  for (const auto& [name, v] : means)
-    if (v > best) best = v, o.largest_sided = name;
-  std::printf("%s: SAF %.4f rad, sided map largest in %s (%.4f)\n", c.name, r.score, o.largest_sided.c_str(), best);
+  SafOutcome o{r.score, ms::asymmetry::largest_region(means)};
+  std::printf("%s: SAF %.4f rad, lateral map largest in %s (%.4f)\n", c.name, r.score, o.largest_sided.c_str(),
+              o.largest_sided.empty() ? 0.0 : means.at(o.largest_sided));
   return o;
 }
 double saf_score(const Case& c) { return saf_outcome(c).score; }
 
 // METHOD.md §7: the side with the larger imposed change is the side the maps
 // point to. The symmetrised SAF map cannot (a vertex and its mirror point
-// carry the same value); its sided form (asymmetry::sided_map) must.
+// carry the same value); its lateral form (asymmetry::lateral_map) must.
 void expect_on_side(const SafOutcome& o, const std::string& side, const std::string& what) {
   EXPECT_GE(o.largest_sided.size(), 2u) << what;
   if (o.largest_sided.size() >= 2) EXPECT_EQ(o.largest_sided.substr(o.largest_sided.size() - 2), side) << what;
@@ -200,9 +198,10 @@ namespace {
 TEST(SafPhantoms, GradedBodyAndChinAreOrderedAndAboveSymmetric) {
   // Neutral pose; measured symmetric 0.0013, body +2/4/6 0.026/0.079/0.097,
   // chin 0.048/0.105/0.170 (docs/method.md). The body knob moves one angle,
-  // ramus and condyle back (one side), so the sided map must point to it; the
-  // chin knob shifts the symphysis, tapering to zero at both angles, so it
-  // changes both sides and has no modified side to point to (docs/method.md).
+  // ramus and condyle back (one side), so the lateral map must point to it; the
+  // chin knob shifts the symphysis to the left, tapering to zero at both
+  // angles: the left body shortens and the right lengthens by about as much,
+  // and the map points to the larger, lengthened side (docs/method.md).
   const double sym = saf_score(Case{"symmetric", 0, 0, 0, 0, false});
   for (const char* kind : {"body", "chin"}) {
     std::vector<double> s;
@@ -212,7 +211,7 @@ TEST(SafPhantoms, GradedBodyAndChinAreOrderedAndAboveSymmetric) {
       (body ? c.body_L : c.chin) = k;
       const SafOutcome o = saf_outcome(c);
       s.push_back(o.score);
-      if (body) expect_on_side(o, "_L", "body +" + std::to_string(k));
+      expect_on_side(o, body ? "_L" : "_R", std::string(kind) + " +" + std::to_string(k));
     }
     EXPECT_GT(s[0], 2 * sym) << kind << " +2 mm";
     for (std::size_t i = 1; i < s.size(); ++i) EXPECT_GT(s[i], s[i - 1]) << kind << " +" << 2 * (i + 1) << " mm";
