@@ -51,7 +51,7 @@ const cli::CommandSpec& phantom_spec() {
        {"condyle-L", "MM", "condylar head size change, left", "0"},
        {"condyle-R", "MM", "condylar head size change, right", "0"},
        {"chin", "MM", "chin (symphysis) deviation, + towards patient left", "0"},
-       {"scale", "F", "size of the whole head model, knobs included (0.6..1.4; 0.8 ~ a child's mandible)", "1"},
+       {"scale", "F", "size of the whole head model, knobs included (0.6..1.4; 0.7 ~ a young child's mandible)", "1"},
        {"seed", "N", "random seed", "1"},
        {"compression", "KIND", "DICOM transfer syntax: raw, jpeg-lossless, jpeg2000 (both lossless)", "raw"},
        {"no-preview", "", "do not write preview PNGs", ""},

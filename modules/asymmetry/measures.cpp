@@ -1,8 +1,8 @@
 #include "asymmetry/measures.h"
 
 #include <algorithm>
-#include <limits>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 

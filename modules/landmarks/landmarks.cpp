@@ -324,10 +324,10 @@ Result detect(const Mesh& mesh, const Options& opt) {
     // Both tangents must be long enough to be borders, not facets: a fifth
     // of the side's height (15 mm on an adult's ~73 mm; a fixed 15 mm lost
     // both gonia of a child's mandible, scale 0.7: posterior tangent 14.4 mm
-    // of a 51 mm side).
+    // of a 51 mm side), and never under 5 mm (no side, a sliver of one).
     double h_lo = kInf, h_hi = -kInf;
     for (const P2& q : gs.pts) h_lo = std::min(h_lo, q.h), h_hi = std::max(h_hi, q.h);
-    const double min_tangent = 0.2 * (h_hi - h_lo);
+    const double min_tangent = gs.pts.empty() ? kInf : std::max(5.0, 0.2 * (h_hi - h_lo));
     gs.ok = best_post > min_tangent && best_inf > min_tangent;
   }
 

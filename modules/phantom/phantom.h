@@ -5,8 +5,9 @@
 // (LPS axes at zero pose). The model is posed into LPS by
 //   p_lps = R s (p_H - pivot) + shift,   R = Rz(yaw) Rx(pitch) Ry(roll)
 // (pivot: centre of the jaw region, so the grid centred on LPS 0 frames the
-// jaw), scaled by PhantomParams::scale about the head frame's origin, then rasterised with partial-volume coverage, optional Gaussian blur
-// (scanner PSF) and Gaussian noise. Deterministic for a given seed.
+// jaw; s = PhantomParams::scale, about the head frame's origin), then
+// rasterised with partial-volume coverage, optional Gaussian blur (scanner
+// PSF) and Gaussian noise. Deterministic for a given seed.
 #pragma once
 
 #include <array>
@@ -40,9 +41,9 @@ struct PhantomParams {
   std::array<SideAsymmetry, 2> side{};  // [0] = left, [1] = right
   double chin_deviation_mm = 0;   // symphysis shift, + towards patient left
   // Size of the whole head model about the point between the condylar heads
-  // (1 = the adult model; 0.8 about a 6-8 year old's mandible). Every length
-  // of the anatomy scales, the knobs above (gaps, joint space, asymmetries) too:
-  // a ramus +4 at scale 0.8 is 3.2 mm longer. Pose, field of view, voxels,
+  // (1 = the adult model, ~100 mm across the condyles; 0.7 a young child's).
+  // Every length of the anatomy scales, the knobs above (gaps, joint space,
+  // asymmetries) too: a ramus +4 at scale 0.8 is 3.2 mm longer. Pose, field of view, voxels,
   // blur, noise and metal streaks are the scanner's and do not scale.
   double scale = 1.0;
   std::uint64_t seed = 1;

@@ -1463,8 +1463,9 @@ static void check_width(Result& r) {
   const double width = hi - lo + std::min(g.spacing[0], g.spacing[1]);
   if (width < 80.0)
     r.warnings.push_back("the structure taken for the mandible is only " + std::to_string(static_cast<int>(std::lround(width))) +
-                         " mm wide left to right (an adult mandible is about 90-125 mm across the condyles, a young child's from about 75): it may be another "
-                         "bone; check the segmentation (thick slices with the teeth in occlusion: docs/segmentation.md)");
+                         " mm wide left to right (an adult mandible is about 90-125 mm across the condyles, a young "
+                         "child's from about 75): it may be another bone; check the segmentation (thick slices with the "
+                         "teeth in occlusion: docs/segmentation.md)");
 }
 
 static Result segment_auto(const Volume& ct, const Options& opt) {
