@@ -603,7 +603,11 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
        "sides agree within 1 mm): the larger side, which is the abnormal one in an overgrowth and the normal one in an "
        "underdevelopment. Lateral: the sided value minus its mirror region's (positive on the larger side); its largest "
        "region is where the asymmetry concentrates"
-    << (s.saf_regions_lateral.empty() ? std::string() : ": " + E(asymmetry::largest_region(s.saf_regions_lateral)))
+    << (s.saf_regions_lateral.empty()
+            ? std::string()
+            : ": " + E(asymmetry::largest_region(s.saf_regions_lateral)) + " (" +
+                  fixed(s.saf_regions_lateral.at(asymmetry::largest_region(s.saf_regions_lateral)), 3) +
+                  " rad; symmetric phantoms stay at or below 0.001)")
     << ".</p>\n";
 
   h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
