@@ -602,13 +602,13 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
        "pair's value on the member that lies beyond its mirror image (signed mirror distance &gt; 0; shared where the "
        "sides agree within 1 mm): the larger side, which is the abnormal one in an overgrowth and the normal one in an "
        "underdevelopment. Lateral: the sided value minus its mirror region's (positive on the larger side); its largest "
-       "region is where the asymmetry concentrates"
-    << (s.saf_regions_lateral.empty()
-            ? std::string()
-            : ": " + E(asymmetry::largest_region(s.saf_regions_lateral)) + " (" +
-                  fixed(s.saf_regions_lateral.at(asymmetry::largest_region(s.saf_regions_lateral)), 3) +
-                  " rad; symmetric phantoms stay at or below 0.001)")
-    << ".</p>\n";
+       "region is where the asymmetry concentrates";
+  if (!s.saf_regions_lateral.empty()) {
+    const std::string top = asymmetry::largest_region(s.saf_regions_lateral);
+    h << ": " << E(top) << " (" << fixed(s.saf_regions_lateral.at(top), 3)
+      << " rad; symmetric phantoms stay at or below 0.001)";
+  }
+  h << ".</p>\n";
 
   h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
   for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fixed(v, 4) << "</td></tr>\n";

@@ -17,10 +17,6 @@ namespace ms::geometry {
 class ClosestPointIndex;
 }
 
-namespace ms::geometry {
-class ClosestPointIndex;
-}
-
 namespace ms::reference {
 
 struct Options {

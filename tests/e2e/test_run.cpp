@@ -61,7 +61,6 @@ fs::path sample_run_dir(const std::string& sample) {
   return fs::temp_directory_path() / ("mandisym_e2e_run_" + sample + "_" + std::to_string(::getpid()));
 }
 
-// The region where results.json's sided SAF map is largest.
 // The region where the SAF map is larger on one side (largest of the
 // lateral map's regional means), checked against the summary results.json gives.
 std::string largest_sided_region(const Value& saf) {
