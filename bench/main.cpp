@@ -23,6 +23,7 @@
 
 #include "bench/fixtures.h"
 #include "bench/registry.h"
+#include "core/memory.h"
 
 namespace ms::bench {
 
@@ -149,6 +150,7 @@ std::string flag_value(int argc, char** argv, const char* flag) {
 
 int main(int argc, char** argv) {
   using namespace ms::bench;
+  ms::tune_allocator_for_volumes();  // as mandisym does: kernels see the product's allocator
   const std::string display_format = flag_value(argc, argv, "benchmark_format");
   const std::string out_file = flag_value(argc, argv, "benchmark_out");
   const std::string out_format = flag_value(argc, argv, "benchmark_out_format");

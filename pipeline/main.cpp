@@ -4,11 +4,8 @@
 #include <string>
 #include <vector>
 
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
-
 #include "core/error.h"
+#include "core/memory.h"
 #include "pipeline/commands.h"
 
 namespace {
@@ -26,23 +23,10 @@ void usage(std::ostream& o) {
     << "            9 batch: some studies failed (cohort.csv), 130 interrupted.\n";
 }
 
-// The stages allocate and free volume-sized arrays (64 MB each at 512^2 x
-// 300) dozens of times. glibc serves every block above 32 MB from a fresh
-// mmap that the kernel zeroes page by page (7 % of a run's CPU under perf);
-// from the heap, a freed array is reused as it is. Measured at 512^2 x 300:
-// segment 4.1-4.2 -> 3.3-3.5 s, peak RSS 1.11 -> 1.33-1.40 GB
-// (docs/benchmarks.md). Results do not depend on it.
-void reuse_freed_memory() {
-#if defined(__GLIBC__)
-  mallopt(M_MMAP_MAX, 0);                // large blocks from the heap, not one mmap each
-  mallopt(M_TRIM_THRESHOLD, 512 << 20);  // keep up to 512 MB freed at the heap's top
-#endif
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
-  reuse_freed_memory();
+  ms::tune_allocator_for_volumes();
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string command_line = "mandisym";
   for (const auto& a : args) command_line += " " + a;
