@@ -1009,9 +1009,13 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   return out;
 }
 
+// Truncation of r.mask on its grid, and its warning (replacing any earlier
+// one: a mask cut from a crop, voted or trimmed is judged again).
 static void set_truncation(Result& r) {
+  static const std::string kWarning = "the mandible touches the edge of the scan: it may be truncated";
+  r.warnings.erase(std::remove(r.warnings.begin(), r.warnings.end(), kWarning), r.warnings.end());
   r.truncated = touches_border(r.mask);
-  if (r.truncated) r.warnings.push_back("the mandible touches the edge of the scan: it may be truncated");
+  if (r.truncated) r.warnings.push_back(kWarning);
 }
 
 // Steps 6-7 on the input grid: surface placement, clean-up, truncation.
@@ -1356,9 +1360,6 @@ static Result segment_located(const Volume& ct, const Options& opt, const GridCo
     for (std::size_t j = 0; j < size[1]; ++j)
       std::copy_n(r.mask.data.data() + sg.linear(0, j, k), size[0], full.data.data() + g.linear(lo[0], j + lo[1], k + lo[2]));
   r.mask = std::move(full);
-  r.warnings.erase(std::remove_if(r.warnings.begin(), r.warnings.end(),
-                                  [](const std::string& w) { return w.rfind("the mandible touches the edge", 0) == 0; }),
-                   r.warnings.end());
   set_truncation(r);
   r.cropped = true;
   return r;
@@ -1530,9 +1531,6 @@ static Result segment_auto(const Volume& ct, const Options& opt) {
     out = std::move(runs[best]);
     out.mask = std::move(consensus);
   }
-  out.warnings.erase(std::remove_if(out.warnings.begin(), out.warnings.end(),
-                                    [](const std::string& w) { return w.rfind("the mandible touches the edge", 0) == 0; }),
-                     out.warnings.end());
   out.voxels = out.mask.count();
   if (out.voxels == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible mask is empty");
   out.volume_mm3 = static_cast<double>(out.voxels) * g.voxel_volume_mm3();
@@ -1540,8 +1538,122 @@ static Result segment_auto(const Volume& ct, const Options& opt) {
   return out;
 }
 
+// Skull base welded to the condyles (docs/segmentation.md, "Skull base
+// welded to a condyle"). Above its body the mandible is two rami and their
+// processes; no axial cross-section of a side there exceeds the ramus's own
+// (condylar head ~20 x 10 mm, ramus ~30 x 8 mm). Where a scan does not
+// resolve the joint space (thick slices, coarse pixels), the temporal bone
+// over the fossa is one solid with the condyle and the separation has
+// nothing to cut: on OpenKBP pt_246 (3.9 x 3.9 x 2.5 mm, the field of view
+// ending ~20 mm above the condyles) 16 cm3 of it came with the mandible, its
+// cross-sections 2.2-4 times the ramus's. A side's part above the slice where
+// it first widens beyond kProcessWideningRatio times its median cross-section
+// above the chin is removed, but only when it runs to the top of the scan
+// (or of the body in it, when the volume is padded with empty slices): a
+// large condyle (hyperplasia, a tumour) ends inside the scan and is kept.
+constexpr double kProcessWideningRatio = 2.0;
+
+void trim_welded_skull_base(const Volume& ct, Result& r) {
+  const Geometry& g = r.mask.geom;
+  // Grid axes along the patient's left-right and inferior-superior axes.
+  auto nearest = [&](int row) {
+    int best = 0;
+    for (int a = 1; a < 3; ++a)
+      if (std::abs(g.direction[3 * row + a]) > std::abs(g.direction[3 * row + best])) best = a;
+    return best;
+  };
+  const int lat = nearest(0), ver = nearest(2);
+  if (lat == ver || std::abs(g.direction[lat]) < 0.9 || std::abs(g.direction[6 + ver]) < 0.9) return;
+  const Box b = bounding_box(r.mask.data.data(), g.size, 0);
+  if (b.size[0] == 0) return;
+  const std::size_t ns = g.size[ver];
+  // Slice positions from the feet up.
+  std::vector<std::size_t> up(ns);
+  for (std::size_t p = 0; p < ns; ++p) up[p] = g.direction[6 + ver] > 0 ? p : ns - 1 - p;
+  const double mid = static_cast<double>(b.lo[lat]) + 0.5 * static_cast<double>(b.size[lat] - 1);
+  const double near_mid = 10.0 / g.spacing[lat];  // the chin and incisors span the midline
+  std::vector<std::size_t> area[2] = {std::vector<std::size_t>(ns, 0), std::vector<std::size_t>(ns, 0)}, central(ns, 0);
+  auto side_of = [&](std::size_t l) { return static_cast<double>(l) > mid ? 1 : 0; };
+  for (std::size_t k = b.lo[2]; k < b.lo[2] + b.size[2]; ++k)
+    for (std::size_t j = b.lo[1]; j < b.lo[1] + b.size[1]; ++j)
+      for (std::size_t i = b.lo[0]; i < b.lo[0] + b.size[0]; ++i) {
+        if (!r.mask.data[g.linear(i, j, k)]) continue;
+        const std::size_t v[3] = {i, j, k};
+        ++area[side_of(v[lat])][v[ver]];
+        central[v[ver]] += std::abs(static_cast<double>(v[lat]) - mid) <= near_mid;
+      }
+  std::size_t chin_top = ns;  // position of the highest slice with mask voxels at the midline
+  for (std::size_t p = 0; p < ns; ++p)
+    if (central[up[p]]) chin_top = p;
+  if (chin_top + 1 >= ns) return;
+  std::array<std::size_t, 2> cut{ns, ns};
+  for (int s = 0; s < 2; ++s) {
+    std::vector<std::size_t> a;
+    for (std::size_t p = chin_top + 1; p < ns; ++p)
+      if (area[s][up[p]]) a.push_back(area[s][up[p]]);
+    if (a.size() < 3) continue;
+    std::nth_element(a.begin(), a.begin() + static_cast<long>(a.size() / 2), a.end());
+    const double median = static_cast<double>(a[a.size() / 2]);
+    // From where the side has narrowed to the ramus: the slices just above
+    // the chin may still hold the body's molar part (a head pitched forward).
+    bool narrowed = false;
+    for (std::size_t p = chin_top + 1; p < ns && cut[s] == ns; ++p) {
+      const auto a_p = static_cast<double>(area[s][up[p]]);
+      if (!narrowed) narrowed = a_p <= median;
+      else if (a_p > kProcessWideningRatio * median) cut[s] = p;
+    }
+    if (std::getenv("MANDISYM_DEBUG_SEG")) {
+      std::fprintf(stderr, "  side %d above the chin (slice %zu from the feet): median %.0f voxels, widens at %zu:", s, chin_top, median, cut[s]);
+      for (std::size_t p = chin_top + 1; p < ns; ++p)
+        if (area[s][up[p]]) std::fprintf(stderr, " %zu", area[s][up[p]]);
+      std::fprintf(stderr, "\n");
+    }
+  }
+  if (cut[0] == ns && cut[1] == ns) return;
+  // The top of the scan: its last slice, or the last one through the body
+  // (a quarter of the widest body cross-section above -500 HU) when empty
+  // slices pad the volume beyond it.
+  std::vector<std::size_t> body(ns, 0);
+  const float tissue = static_cast<float>(r.offset_hu - 500.0);
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j) {
+      const float* row = ct.hu.data() + g.linear(0, j, k);
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        const std::size_t v[3] = {i, j, k};
+        body[v[ver]] += row[i] >= tissue;
+      }
+    }
+  const std::size_t widest = *std::max_element(body.begin(), body.end());
+  std::size_t top = ns - 1;
+  while (top > 0 && 4 * body[up[top]] < widest) --top;
+  for (int s = 0; s < 2; ++s) {
+    if (cut[s] == ns || area[s][up[top]] == 0) continue;  // ends inside the scan
+    std::size_t removed = 0;
+    for (std::size_t k = b.lo[2]; k < b.lo[2] + b.size[2]; ++k)
+      for (std::size_t j = b.lo[1]; j < b.lo[1] + b.size[1]; ++j)
+        for (std::size_t i = b.lo[0]; i < b.lo[0] + b.size[0]; ++i) {
+          const std::size_t v[3] = {i, j, k};
+          std::uint8_t& m = r.mask.data[g.linear(i, j, k)];
+          if (!m || side_of(v[lat]) != s) continue;
+          const std::size_t p = g.direction[6 + ver] > 0 ? v[ver] : ns - 1 - v[ver];
+          if (p >= cut[s]) m = 0, ++removed;
+        }
+    char msg[256];
+    std::snprintf(msg, sizeof msg,
+                  "%.1f cm3 above the %s condyle removed: it widens to more than %.0f times the ramus and runs to the "
+                  "top of the scan (skull base not separable from the condyle at this resolution)",
+                  static_cast<double>(removed) * g.voxel_volume_mm3() / 1000.0,
+                  (g.direction[lat] > 0) == (s == 1) ? "left" : "right", kProcessWideningRatio);
+    r.warnings.push_back(msg);
+  }
+  r.voxels = r.mask.count();
+  r.volume_mm3 = static_cast<double>(r.voxels) * g.voxel_volume_mm3();
+  set_truncation(r);
+}
+
 Result segment_mandible(const Volume& ct, const Options& opt) {
   Result r = segment_auto(ct, opt);
+  if (r.separation_radius_mm > 0) trim_welded_skull_base(ct, r);
   check_width(r);
   return r;
 }

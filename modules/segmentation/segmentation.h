@@ -78,6 +78,14 @@ struct Result {
 // Throws ms::Error(NoMandible) when no component qualifies.
 Result segment_mandible(const Volume& ct, const Options& options = {});
 
+// The last step of segment_mandible (docs/segmentation.md, "Skull base welded
+// to a condyle"): per side, the part of r.mask above the first slice (above
+// the chin) where the side widens beyond twice its median cross-section there
+// is removed when it runs to the top of the scan, or of the body where empty
+// slices pad the volume; voxels, volume, truncation and warnings follow.
+// Needs grid axes within ~25 degrees of left-right and superior-inferior.
+void trim_welded_skull_base(const Volume& ct, Result& r);
+
 // Mandible from an external label map (e.g. TotalSegmentator
 // craniofacial_structures, mandible = 1): voxels equal to label (label < 0:
 // any non-zero label, allowed only when the map holds a single label),

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 
 #include "core/error.h"
 #include "phantom/phantom.h"
@@ -511,10 +512,129 @@ TEST(AutoSegmentation, ScanWithoutBoneIsAClearError) {
   }
 }
 
+// A mask shaped like a mandible on a coarse grid (2 x 2 x 2.5 mm, k up):
+// a body across the midline (k 1-9), two rami (k 10-39, 4 x 8 voxels each),
+// and above one ramus whatever `above` adds. Soft tissue fills the scan up to
+// body_top; above it the volume is empty padding (-1000 HU).
+namespace {
+void fill(Mask& m, std::size_t i0, std::size_t i1, std::size_t j0, std::size_t j1, std::size_t k0, std::size_t k1) {
+  for (std::size_t k = k0; k <= k1; ++k)
+    for (std::size_t j = j0; j <= j1; ++j)
+      for (std::size_t i = i0; i <= i1; ++i) m.data[m.geom.linear(i, j, k)] = 1;
+}
+struct WeldCase {
+  Volume ct;
+  segmentation::Result r;
+};
+WeldCase weld_case(std::size_t body_top, const std::function<void(Mask&)>& above) {
+  WeldCase c;
+  Geometry& g = c.ct.geom;
+  g.size = {60, 40, 50};
+  g.spacing = {2.0, 2.0, 2.5};
+  c.ct.hu.assign(g.voxel_count(), 40.0f);
+  Mask& m = c.r.mask;
+  m.geom = g;
+  m.data.assign(g.voxel_count(), 0);
+  fill(m, 10, 49, 5, 12, 1, 9);     // body and chin
+  fill(m, 10, 13, 10, 17, 10, 39);  // ramus, low i
+  fill(m, 46, 49, 10, 17, 10, 39);  // ramus, high i
+  above(m);
+  for (std::size_t i = 0; i < m.data.size(); ++i)
+    if (m.data[i]) c.ct.hu[i] = 1200.0f;
+  for (std::size_t k = body_top + 1; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) c.ct.hu[g.linear(i, j, k)] = -1000.0f;
+  c.r.method = "auto";
+  c.r.voxels = m.count();
+  c.r.separation_radius_mm = 1.5;
+  return c;
+}
+std::size_t count_from(const Mask& m, std::size_t k0, bool high_i) {
+  std::size_t n = 0;
+  for (std::size_t k = k0; k < m.geom.size[2]; ++k)
+    for (std::size_t j = 0; j < m.geom.size[1]; ++j)
+      for (std::size_t i = 0; i < m.geom.size[0]; ++i) n += m.data[m.geom.linear(i, j, k)] && (i >= 30) == high_i;
+  return n;
+}
+}  // namespace
+
+// The temporal bone welded to a condyle on a coarse scan whose field of view
+// ends above the joint: a side that widens to many times its ramus and runs
+// out of the top of the scan loses what lies above the widening; a large
+// condyle that ends inside the scan is kept.
+TEST(AutoSegmentation, SkullBaseWeldedToACondyleIsCutWhereItWidens) {
+  // Slab over the high-i ramus (18 x 18 voxels, ~10x the ramus) to the last slice;
+  // a big condyle (16 x 13 voxels) over the other ramus ending at k 44.
+  auto c = weld_case(49, [](Mask& m) {
+    fill(m, 40, 57, 8, 25, 40, 49);
+    fill(m, 4, 19, 8, 20, 40, 44);
+  });
+  const std::size_t big_condyle = count_from(c.r.mask, 40, false);
+  segmentation::trim_welded_skull_base(c.ct, c.r);
+  EXPECT_EQ(count_from(c.r.mask, 40, true), 0u) << "the slab must go";
+  EXPECT_EQ(count_from(c.r.mask, 10, true), 4u * 8u * 30u) << "the ramus below it must stay";
+  EXPECT_EQ(count_from(c.r.mask, 40, false), big_condyle) << "a condyle ending inside the scan must stay";
+  EXPECT_FALSE(c.r.truncated);
+  EXPECT_EQ(c.r.voxels, c.r.mask.count());
+  ASSERT_EQ(c.r.warnings.size(), 1u);
+  EXPECT_NE(c.r.warnings[0].find("removed"), std::string::npos);
+
+  // The same slab ending five slices below the top of a padded volume (no
+  // body above k 44): the top of the body is the top of the scan.
+  auto padded = weld_case(44, [](Mask& m) { fill(m, 40, 57, 8, 25, 40, 44); });
+  segmentation::trim_welded_skull_base(padded.ct, padded.r);
+  EXPECT_EQ(count_from(padded.r.mask, 40, true), 0u);
+
+  // Inside a scan that goes on above it, the same slab is left alone: it may be
+  // a large condyle (hyperplasia, a tumour).
+  auto inside = weld_case(49, [](Mask& m) { fill(m, 40, 57, 8, 25, 40, 44); });
+  const std::size_t before = inside.r.mask.count();
+  segmentation::trim_welded_skull_base(inside.ct, inside.r);
+  EXPECT_EQ(inside.r.mask.count(), before);
+  EXPECT_TRUE(inside.r.warnings.empty());
+
+  // A condylar process no wider than its ramus running out of the scan (the
+  // field of view cuts the condyles) is the mandible, truncated.
+  auto cut = weld_case(49, [](Mask& m) { fill(m, 46, 49, 12, 17, 40, 49); });
+  const std::size_t all = cut.r.mask.count();
+  segmentation::trim_welded_skull_base(cut.ct, cut.r);
+  EXPECT_EQ(cut.r.mask.count(), all);
+}
+
+// A head pitched 10 degrees chin-down whose scan ends 15 mm below the
+// condyles: above the chin the slices still cross the molar part of the body
+// before the rami, twice as large as the rami's median there. That is not a
+// process widening (the welded skull base's rule above): the first version
+// of the rule took it for one and cut both rami off at the chin's top
+// (Dice 0.808, 2 x 11.9 cm3 removed).
+TEST(AutoSegmentation, PitchedHeadCutThroughTheRamiKeepsItsRami) {
+  phantom::PhantomParams p;
+  p.spacing = {1, 1, 1};
+  p.pitch_deg = 10;
+  const auto ph = phantom::generate(p);
+  const double top = (*ph.landmarks.find("Co_L"))[2] - 15.0;
+  const Geometry& g = ph.ct.geom;
+  std::size_t keep = 0;  // slices at or below the cut (k runs up)
+  while (keep < g.size[2] && g.index_to_lps(0, 0, static_cast<double>(keep))[2] <= top) ++keep;
+  Volume ct;
+  Mask truth;
+  ct.geom = g;
+  ct.geom.size[2] = keep;
+  truth.geom = ct.geom;
+  ct.hu.assign(ph.ct.hu.begin(), ph.ct.hu.begin() + static_cast<long>(ct.geom.voxel_count()));
+  truth.data.assign(ph.mandible.data.begin(), ph.mandible.data.begin() + static_cast<long>(ct.geom.voxel_count()));
+  const auto r = segmentation::segment_mandible(ct);
+  const double d = ms::testing::dice(r.mask, truth);
+  std::printf("pitched 10 degrees, cut 15 mm below the condyles: Dice %.4f\n", d);
+  EXPECT_TRUE(r.truncated);
+  EXPECT_GE(d, 0.97);
+  for (const auto& w : r.warnings) EXPECT_EQ(w.find("removed"), std::string::npos) << w;
+}
+
 // Real low-resolution scans (4.6 x 4.6 x 2 mm) against clinical contours. The
-// issue's target is Dice >= 0.8 per case; measured 0.82 / 0.87 / 0.79
-// (docs/segmentation.md): the mean must reach it, no case may fall far below,
-// and every case must be separated without a warning.
+// issue's target is Dice >= 0.8 per case; measured 0.822 / 0.872 / 0.873
+// (docs/segmentation.md), and every case must be separated without a warning
+// that it was not.
 TEST(AutoSegmentation, OpenKbpAgreesWithClinicalContours) {
   const std::string root = std::string(MANDISYM_SHARED_DATA) + "/openkbp";
   if (!std::filesystem::exists(root)) GTEST_SKIP() << "shared data not present";
@@ -528,7 +648,7 @@ TEST(AutoSegmentation, OpenKbpAgreesWithClinicalContours) {
     std::printf("%s: Dice %.3f, %.1f cm3 (contour %.1f cm3)\n", pt, d, r.volume_mm3 / 1000,
                 c.mandible.count() * c.ct.geom.voxel_volume_mm3() / 1000);
     sum += d;
-    EXPECT_GE(d, 0.75) << pt;
+    EXPECT_GE(d, 0.8) << pt;
     EXPECT_GT(r.separation_radius_mm, 0.0) << pt;
     for (const auto& w : r.warnings) EXPECT_EQ(w.find("not separated"), std::string::npos) << pt << ": " << w;
   }
