@@ -293,7 +293,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     // 4. landmarks, in the head's frame: the mandible's symmetry plane gives
     //    yaw and roll, the palatal plane (nasal floor) gives pitch.
     landmarks::Options lo;
-    if (seg.truncated) lo.scan_grid = &seg.mask.geom;  // landmarks at the cut are missing, not guessed
+    if (seg.truncated) lo.scan_grid = &seg.scanned_grid;  // landmarks at the cut are missing, not guessed
     landmarks::PalateOptions po;
     po.plate_hu += seg.offset_hu;  // thresholds follow the scan's calibration offset
     po.air_hu += seg.offset_hu;

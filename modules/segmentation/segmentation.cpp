@@ -1688,6 +1688,7 @@ static Result segment_scanned(const Volume& ct, const Options& opt) {
   Result r = segment_auto(ct, opt);
   if (r.separation_radius_mm > 0) trim_welded_skull_base(ct, r);
   check_width(r);
+  r.scanned_grid = ct.geom;
   return r;
 }
 
@@ -1727,6 +1728,7 @@ Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const s
   if (!present.count(want)) throw Error(ExitCode::NoMandible, source + ": label " + std::to_string(want) + " is not in the map");
   Result r;
   r.method = "external";
+  r.scanned_grid = ct;
   r.mask.geom = ct;
   r.mask.data.assign(ct.voxel_count(), 0);
   const bool same = lm.geom.same_grid(ct, 1e-3);

@@ -62,6 +62,10 @@ struct Result {
   std::size_t voxels = 0;
   double volume_mm3 = 0;
   bool truncated = false;  // the mask touches the edge of the scan
+  // The scanned part of the input grid, whose faces are the scan's edge: the
+  // whole grid, but for slabs of constant padding at its faces on scans up to
+  // 2 mm (docs/segmentation.md, "Padding is not scanned").
+  Geometry scanned_grid;
   bool cropped = false;    // full-resolution work ran on a crop around the located mandible
   double threshold_hu = 0;          // bone threshold used (after calibration offset)
   // HU level at which the mask's outer boundary was placed (after the

@@ -667,6 +667,8 @@ TEST(AutoSegmentation, PaddedScanEndsWhereItsPaddingBegins) {
     EXPECT_TRUE(rp.truncated);
     EXPECT_GE(d, 0.97);
     EXPECT_EQ(rp.voxels, rc.voxels) << "the padding must not change the mask";
+    EXPECT_TRUE(rp.scanned_grid.same_grid(cropped.ct.geom)) << "the scan's edge is where the padding begins";
+    EXPECT_TRUE(rc.scanned_grid.same_grid(cropped.ct.geom));
   }
 }
 
