@@ -1567,7 +1567,8 @@ void trim_welded_skull_base(const Volume& ct, Result& r) {
   const Box b = bounding_box(r.mask.data.data(), g.size, 0);
   if (b.size[0] == 0) return;
   const std::size_t ns = g.size[ver];
-  // Slice positions from the feet up.
+  // up[p]: the slice at position p from the feet; the map is its own
+  // inverse, so up[s] is also slice s's position.
   std::vector<std::size_t> up(ns);
   for (std::size_t p = 0; p < ns; ++p) up[p] = g.direction[6 + ver] > 0 ? p : ns - 1 - p;
   const double mid = static_cast<double>(b.lo[lat]) + 0.5 * static_cast<double>(b.size[lat] - 1);
@@ -1635,8 +1636,7 @@ void trim_welded_skull_base(const Volume& ct, Result& r) {
           const std::size_t v[3] = {i, j, k};
           std::uint8_t& m = r.mask.data[g.linear(i, j, k)];
           if (!m || side_of(v[lat]) != s) continue;
-          const std::size_t p = g.direction[6 + ver] > 0 ? v[ver] : ns - 1 - v[ver];
-          if (p >= cut[s]) m = 0, ++removed;
+          if (up[v[ver]] >= cut[s]) m = 0, ++removed;
         }
     char msg[256];
     std::snprintf(msg, sizeof msg,

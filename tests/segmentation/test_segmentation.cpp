@@ -544,9 +544,7 @@ WeldCase weld_case(std::size_t body_top, const std::function<void(Mask&)>& above
   for (std::size_t k = body_top + 1; k < g.size[2]; ++k)
     for (std::size_t j = 0; j < g.size[1]; ++j)
       for (std::size_t i = 0; i < g.size[0]; ++i) c.ct.hu[g.linear(i, j, k)] = -1000.0f;
-  c.r.method = "auto";
   c.r.voxels = m.count();
-  c.r.separation_radius_mm = 1.5;
   return c;
 }
 std::size_t count_from(const Mask& m, std::size_t k0, bool high_i) {
