@@ -252,6 +252,20 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.seg_offset_hu = seg.offset_hu;
     S.seg_separation_mm = seg.separation_radius_mm;
     S.seg_marker_source = seg.marker_source;
+    if (seg.atlas.ncc >= -1) {
+      constexpr double kDegPerRad = 57.29577951308232;
+      S.atlas_found = seg.atlas.found;
+      S.atlas_ncc = seg.atlas.ncc;
+      S.atlas_mirrored_ncc = seg.atlas.mirrored_ncc;
+      S.atlas_coverage = seg.atlas.coverage;
+      S.atlas_agreement = seg.atlas_agreement;
+      S.atlas_centre = seg.atlas.pose.t;
+      S.atlas_scale = seg.atlas.pose.scale;
+      S.atlas_pitch_deg = seg.atlas.pose.pitch * kDegPerRad;
+      S.atlas_yaw_deg = seg.atlas.pose.yaw * kDegPerRad;
+      S.atlas_roll_deg = seg.atlas.pose.roll * kDegPerRad;
+      S.atlas_seconds = seg.atlas.seconds;
+    }
     for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
     stage("segment", 2);
     mask_outputs = std::async(std::launch::async, [&scan, &seg, &staging, figures_on] {
@@ -377,6 +391,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     throw Error(e.code(), input + ": " + e.what());
   }
 
+  S.qc = reports::evaluate_qc(S);
+  for (const reports::QcCheck* c : S.qc.failed())
+    S.warnings.push_back(std::string("quality control: ") + (c->fatal ? "FAILED " : "") + c->name + ": " + c->message);
+
   S.parameters["hu_offset"] = num(ro.hu_offset);
   S.parameters["bone_threshold_hu"] = num(so.bone_threshold_hu);
   S.parameters["surface_smoothing_sigma_mm"] = num(mo.smoothing_sigma_mm);
@@ -448,7 +466,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
         for (std::size_t p = w.find(input); !input.empty() && p != std::string::npos; p = w.find(input, p))
           w.replace(p, input.size(), "<input>");
     reports::write_text_atomic(staging.path("report.html"), reports::report_html(S, figures, views, views_note));
-    reports::write_text_atomic(staging.path("results.csv"), reports::csv_header() + reports::csv_row(S, "ok"));
+    reports::write_text_atomic(staging.path("results.csv"), reports::csv_header() + reports::csv_row(S, S.qc.status == "fail" ? "qc_failed" : "ok"));
     for (const auto& w : S.warnings) log << "warning: " << w << "\n";
     {
       char b[64];
@@ -463,6 +481,17 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   if (!quiet) {
     for (const auto& w : S.warnings) std::cout << "warning: " << w << "\n";
     std::cout << "report: " << (fs::absolute(fs::path(outdir)) / "report.html").lexically_normal().string() << std::endl;
+  }
+  if (S.qc.status == "fail") {
+    std::string what, first;
+    for (const reports::QcCheck* c : S.qc.failed())
+      if (c->fatal) {
+        what += (what.empty() ? "" : ", ") + c->name;
+        if (first.empty()) first = c->message;
+      }
+    std::cerr << "mandisym: " << input << ": result failed quality control: " << first << " (" << what << "); outputs written to "
+              << outdir << "\n";
+    return static_cast<int>(ExitCode::QcFailed);
   }
   return 0;
 }

@@ -12,6 +12,7 @@
 #include "core/types.h"
 #include "landmarks/landmarks.h"
 #include "landmarks/palate.h"
+#include "reports/qc.h"
 #include "reference/reference.h"
 #include "segmentation/segmentation.h"
 #include "surface/surface.h"
@@ -29,6 +30,11 @@ struct RunSummary {
   bool truncated = false;
   double seg_threshold_hu = 0, seg_offset_hu = 0, seg_separation_mm = 0;
   std::string seg_marker_source;
+  // The mandible atlas placed in the scan (docs/atlas.md); atlas_ncc < -1: not fitted.
+  bool atlas_found = false;
+  double atlas_ncc = -2, atlas_mirrored_ncc = -2, atlas_coverage = 0, atlas_agreement = -1;
+  Vec3 atlas_centre{0, 0, 0};
+  double atlas_scale = 1, atlas_pitch_deg = 0, atlas_yaw_deg = 0, atlas_roll_deg = 0, atlas_seconds = 0;
   surface::MeshStats mesh;
   Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
   double closing_mm = 0;          // closing before meshing (0 = none)
@@ -56,6 +62,7 @@ struct RunSummary {
   double total_s = 0;
   std::vector<std::string> warnings;
   std::map<std::string, std::string> parameters;
+  Qc qc;  // evaluate_qc(*this), once everything above is set
 };
 
 }  // namespace ms::reports

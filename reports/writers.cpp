@@ -152,6 +152,40 @@ json::Value results_json(const RunSummary& s) {
     seg["calibration_offset_hu"] = s.seg_offset_hu;
     seg["separation_depth_mm"] = s.seg_separation_mm > 0 ? Value(s.seg_separation_mm) : Value();
     seg["marker_source"] = s.seg_marker_source.empty() ? Value() : Value(s.seg_marker_source);
+    if (s.atlas_ncc >= -1) {
+      auto& at = seg["atlas"];
+      at["found"] = s.atlas_found;
+      at["ncc"] = s.atlas_ncc;
+      at["mirrored_ncc"] = s.atlas_mirrored_ncc;
+      at["coverage"] = s.atlas_coverage;
+      at["agreement"] = s.atlas_agreement >= 0 ? Value(s.atlas_agreement) : Value();
+      at["centre_lps_mm"] = Value::array_of(s.atlas_centre);
+      at["scale"] = s.atlas_scale;
+      at["pitch_deg"] = s.atlas_pitch_deg;
+      at["yaw_deg"] = s.atlas_yaw_deg;
+      at["roll_deg"] = s.atlas_roll_deg;
+      at["seconds"] = s.atlas_seconds;
+    }
+  }
+
+  {
+    auto& qc = root["qc"];
+    qc["status"] = s.qc.status;
+    Value checks = Value::array();
+    for (const QcCheck& c : s.qc.checks) {
+      Value v = Value::object();
+      v["name"] = c.name;
+      v["value"] = std::isnan(c.value) ? Value() : Value(c.value);
+      v["allowed"] = Value::array_of(std::array<double, 2>{c.lo, c.hi});
+      if (!c.unit.empty()) v["unit"] = c.unit;
+      v["source"] = c.source;
+      v["passed"] = c.passed;
+      v["severity"] = c.fatal ? "fail" : "warn";
+      if (!c.passed) v["meaning"] = c.message;
+      checks.push_back(v);
+    }
+    qc["checks"] = checks;
+    qc["head_frame"] = s.palate.found ? "palatal" : "scan_axes";
   }
 
   auto& mesh = root["mesh"];
@@ -456,6 +490,7 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #dde3ec;padding:.25em .6em;text-align:right}"
        "th{background:#f3f6fa}td:first-child,th:first-child{text-align:left}\n"
     << ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}\n"
+    << ".qcfail{background:#fde4e1;border-left:6px solid #d0453a;padding:.6em 1em;margin:.8em 0;color:#6b1710}\n"
     << ".cards{display:flex;flex-wrap:wrap;gap:1em}.card{border:1px solid #dde3ec;border-radius:8px;padding:.8em 1.2em;"
        "min-width:200px}.card .v{font-size:1.8em;font-weight:600}.card .k{color:#5a6475;font-size:.9em}\n"
     << "figure{display:inline-block;margin:.4em}figure img{max-width:340px;border:1px solid #dde3ec}.views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views figure{margin:0}.views figure img{width:100%;max-width:none}"
@@ -487,10 +522,29 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << " voxels, spacing " << fixed(s.grid.spacing[0]) << " &times; " << fixed(s.grid.spacing[1]) << " &times; "
     << fixed(s.grid.spacing[2]) << " mm. Pixel data SHA-256 <code>" << E(s.scan.pixel_sha256.substr(0, 16))
     << "&hellip;</code></p>\n";
+  const bool qc_failed = s.qc.status == "fail";
+  if (qc_failed) {
+    // A failed result opens with its failures; no headline or interpretation bands (docs/qc.md).
+    h << "<div class=\"qcfail\" role=\"alert\"><strong>Result failed quality control &mdash; do not use these numbers.</strong><ul>\n";
+    for (const QcCheck* c : s.qc.failed())
+      if (c->fatal)
+        h << "<li><b>" << E(c->name) << "</b> = " << (std::isnan(c->value) ? std::string("n/a") : fixed(c->value)) << " (allowed "
+          << fixed(c->lo) << " to " << fixed(c->hi) << "): " << E(c->message) << ". <span class=\"muted\">" << E(c->source)
+          << "</span></li>\n";
+    h << "</ul></div>\n";
+  }
+  h << "<h2>Quality control: " << E(s.qc.status) << "</h2>\n<table><tr><th>check</th><th>value</th><th>allowed</th><th>result</th><th>source</th></tr>\n";
+  for (const QcCheck& c : s.qc.checks)
+    h << "<tr><td>" << E(c.name) << "</td><td>" << (std::isnan(c.value) ? std::string("n/a") : fixed(c.value)) << "</td><td>"
+      << fixed(c.lo) << " &ndash; " << fixed(c.hi) << "</td><td>" << (c.passed ? "pass" : c.fatal ? "FAIL" : "warn") << "</td><td>"
+      << E(c.source) << "</td></tr>\n";
+  h << "</table>\n";
   for (const auto& w : s.warnings) h << "<div class=\"warn\">&#9888; " << E(w) << "</div>\n";
 
-  h << "<h2>Headline</h2>\n";
-  headline_html(h, s);
+  if (!qc_failed) {
+    h << "<h2>Headline</h2>\n";
+    headline_html(h, s);
+  }
 
   auto embed = [&](const std::string& f, const std::string& caption) {
     std::ifstream in(f, std::ios::binary);

@@ -16,6 +16,7 @@ enum class ExitCode : int {
   NoMandible = 5,      // segmentation found no mandible / mask empty
   GeometryFailed = 6,  // surface, landmarks or plane could not be computed
   OutputFailed = 7,    // cannot write the output folder
+  QcFailed = 8,        // run: the result failed quality control (outputs written; docs/qc.md)
   BatchIncomplete = 9, // batch: at least one study failed (see cohort.csv)
 };
 

@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <set>
 
+#include "atlas/atlas.h"
 #include "core/distance_transform.h"
 #include "core/debug_lap.h"
 #include "core/error.h"
@@ -103,6 +104,7 @@ double estimate_offset(const Volume& ct, std::size_t* soft_voxels) {
 struct Features {
   std::size_t voxels = 0;
   double located = 1.0;  // fraction inside the located region (1 when none is given)
+  double prior_sum = 0;  // sum over the core's voxels of the atlas's mandible probability
   Vec3 lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30}, sum{0, 0, 0};
   Vec3 centroid() const { return (1.0 / static_cast<double>(voxels)) * sum; }
   double extent(int a) const { return hi[a] - lo[a]; }
@@ -161,6 +163,46 @@ unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double 
       best_z = c.centroid()[2];
       best = l;
     }
+  }
+  return best;
+}
+
+// Identification by the atlas (docs/segmentation.md, step 4): each voxel of
+// a core counts the atlas's mandible probability there minus
+// kPriorBackground, so that a core holding the mandible scores by its size
+// and loses by every voxel of another bone fused to it (skull base, maxilla,
+// spine); the vault, the occiput and the vertebrae, where the atlas gives
+// no mandible, score below zero. A core qualifies when its mean probability
+// is at least kMinCorePrior. The probabilities of the training mandibles
+// (3 mm, aligned by similarity) are 0.5-0.95 in the mandible's bone, so
+// these thresholds hold with a misfit of several millimetres (docs/atlas.md).
+// A core must also hold at least kMinCoreShare of the atlas's mandible mass
+// (sum of p, mm3): a piece of a mandible whose thin cortex broke its core
+// into fragments is not the mandible's core (the whole-bone solid is tried
+// next). The deepest core tried (3 mm) of a 4 mm scan's mandible keeps about
+// a third of its volume.
+constexpr double kPriorBackground = 0.25;
+constexpr double kMinCorePrior = 0.3;
+constexpr double kMinCoreShare = 0.15;
+// Without a separable core, the bone where the atlas's probability is at
+// least this is taken (the atlas's median mandible surface).
+constexpr double kAtlasRegionP = 0.5;
+
+// Score of a core in cm3 of mandible evidence (above); -inf when it does not qualify.
+double atlas_merit(const Features& c, double voxel_mm3, double atlas_mm3) {
+  if (c.voxels == 0) return -std::numeric_limits<double>::infinity();
+  const double mean = c.prior_sum / static_cast<double>(c.voxels);
+  if (mean < kMinCorePrior || c.prior_sum * voxel_mm3 < kMinCoreShare * atlas_mm3) return -std::numeric_limits<double>::infinity();
+  return (c.prior_sum - kPriorBackground * static_cast<double>(c.voxels)) * voxel_mm3 / 1000.0;
+}
+
+unsigned pick_by_atlas(const std::vector<Features>& f, double voxel_mm3, double atlas_mm3, double min_located) {
+  unsigned best = 0;
+  double best_merit = 0;
+  for (unsigned l = 1; l < f.size(); ++l) {
+    if (f[l].located < min_located) continue;
+    const double m = atlas_merit(f[l], voxel_mm3, atlas_mm3);
+    if (m > best_merit) best_merit = m, best = l;
   }
   return best;
 }
@@ -450,6 +492,9 @@ struct GridContext {
   // The mandible's region as located on a coarser grid (LPS geometry), or
   // null: on a crop, only cores inside it can be the mandible.
   const Mask* located = nullptr;
+  // The mandible atlas placed in the scan (LPS), or null / not found: then
+  // the mandible is identified by size and position (pick_mandible).
+  const atlas::Fit* atlas = nullptr;
 };
 
 // Whether the voxel of mask m nearest to (continuous) index q is set (false outside m's grid).
@@ -702,6 +747,36 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
           in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = set_at_index(loc, row + static_cast<double>(i) * qi);
       }
   }
+  // The atlas's mandible probability at every bone voxel of the crop.
+  const bool by_atlas = ctx.atlas && ctx.atlas->found;
+  std::vector<float> prior;
+  if (by_atlas) {
+    prior.assign(cg.voxel_count(), 0.0f);
+    const auto* b = bone->GetBufferPointer();
+    const atlas::Atlas& at = atlas::shipped();
+    const long nz = static_cast<long>(cdims[2]);
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < nz; ++k)
+      for (std::size_t j = 0; j < cdims[1]; ++j)
+        for (std::size_t i = 0; i < cdims[0]; ++i) {
+          const std::size_t idx = cg.linear(i, j, static_cast<std::size_t>(k));
+          if (b[idx])
+            prior[idx] = static_cast<float>(atlas::mandible_prior(
+                at, ctx.atlas->pose, cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k))));
+        }
+    lap("atlas prior");
+  }
+  const double atlas_mm3 = by_atlas ? atlas::mandible_mass_mm3(atlas::shipped(), ctx.atlas->pose) : 0.0;
+  auto pick = [&](const std::vector<Features>& f, double rr) {
+    return by_atlas ? pick_by_atlas(f, voxel_mm3, atlas_mm3, min_located) : pick_mandible(f, voxel_mm3, rr, min_located);
+  };
+  // How good a mandible core is, to choose between depths: its atlas
+  // evidence (cm3), or without the atlas its height (mm; a core cut off
+  // below fused teeth is shorter than one reaching the condyles).
+  auto merit = [&](const std::vector<Features>& f, unsigned l, double rr) {
+    return by_atlas ? atlas_merit(f[l], voxel_mm3, atlas_mm3) : f[l].extent(2) + 2 * rr;
+  };
+  const double merit_margin = by_atlas ? 0.5 : 1.0;  // cm3 of evidence, or mm of height
   auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
     auto core = io::make_image<MaskImage>(cg);
     auto* c = core->GetBufferPointer();
@@ -715,6 +790,11 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     relabel->Update();
     *n_out = static_cast<unsigned>(relabel->GetNumberOfObjects());
     *f_out = component_features(relabel->GetOutput(), *n_out, cg);
+    if (by_atlas) {
+      const auto* lab = relabel->GetOutput()->GetBufferPointer();
+      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+        if (lab[i]) (*f_out)[lab[i]].prior_sum += prior[i];
+    }
     if (!in_located.empty()) {
       std::vector<std::size_t> inside(*n_out + 1, 0);
       const auto* lab = relabel->GetOutput()->GetBufferPointer();
@@ -790,12 +870,12 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       LabelImage::Pointer m;
       unsigned n = 0, l = 0;
       std::vector<Features> f;
-      double height = 0;
+      double merit = 0;  // merit() of the mandible core
     };
     Trial pending, tallest_any;  // tallest_any: markers are recomputed if every candidate is two bones
-    double best_height = 0;
+    double best_merit = 0;
     auto adopt = [&](Trial& t) {
-      best_height = t.height;
+      best_merit = t.merit;
       markers = t.m;
       n_markers = t.n;
       feats = t.f;
@@ -822,18 +902,27 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
                        piece.size() > 1 ? piece[1] * voxel_mm3 / 1000 : 0.0, piece.size() > 2 ? piece[2] * voxel_mm3 / 1000 : 0.0,
                        total * voxel_mm3 / 1000, two_bones ? ": two bones" : "");
       }
-      if (pending.height > tallest_any.height) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.height};
-      if (!two_bones && pending.height > best_height + 1.0) adopt(pending);
+      if (pending.merit > tallest_any.merit) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.merit};
+      if (!two_bones && pending.merit > best_merit + merit_margin) adopt(pending);
     };
     for (double rr = rsep; rr <= r_max; rr += 0.5) {
       Trial t;
       t.rr = rr;
       t.m = cores_of(sd, rr, &t.n, &t.f);
-      t.l = pick_mandible(t.f, voxel_mm3, rr, min_located);
-      if (t.l) t.height = t.f[t.l].extent(2) + 2 * rr;
+      t.l = pick(t.f, rr);
+      if (t.l) t.merit = merit(t.f, t.l, rr);
+      if (lap.on() && by_atlas) {
+        unsigned top = 0;
+        for (unsigned l = 1; l <= t.n; ++l)
+          if (!top || t.f[l].prior_sum > t.f[top].prior_sum) top = l;
+        if (top)
+          std::fprintf(stderr, "  %s r %.1f: most atlas mass in core %u: %.1f cm3, mean p %.2f, share %.2f of %.1f cm3%s\n", name, rr, top,
+                       t.f[top].voxels * voxel_mm3 / 1000, t.f[top].prior_sum / t.f[top].voxels, t.f[top].prior_sum * voxel_mm3 / atlas_mm3,
+                       atlas_mm3 / 1000, top == t.l ? " (taken)" : "");
+      }
       if (lap.on() && t.l)
         std::fprintf(stderr, "  %s r %.1f: mandible core %.1f cm3 w %.0f d %.0f h %.0f (%u cores)\n", name, rr,
-                     t.f[t.l].voxels * voxel_mm3 / 1000, t.f[t.l].extent(0) + 2 * rr, t.f[t.l].extent(1) + 2 * rr, t.height, t.n);
+                     t.f[t.l].voxels * voxel_mm3 / 1000, t.f[t.l].extent(0) + 2 * rr, t.f[t.l].extent(1) + 2 * rr, t.merit, t.n);
       decide(t.m.GetPointer(), t.n);
       pending = std::move(t);
     }
@@ -843,8 +932,8 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       Trial t;
       t.rr = tallest_any.rr;
       t.m = cores_of(sd, t.rr, &t.n, &t.f);
-      t.l = pick_mandible(t.f, voxel_mm3, t.rr, min_located);
-      t.height = tallest_any.height;
+      t.l = pick(t.f, t.rr);
+      t.merit = tallest_any.merit;
       if (t.l) adopt(t);
     }
     if (solid == bone) bone_depth = std::move(sd);
@@ -859,6 +948,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
 
   std::vector<std::uint8_t> crop_mask(cg.voxel_count(), 0);
   if (mand == 0) {
+    const auto* b_crop = bone->GetBufferPointer();
     r.warnings.push_back("mandible not separated from the other bones: no bone core has a mandible's size; "
                          "the result may include skull or spine");
     // Fall back to the widest, lowest bone component of the undivided mask.
@@ -873,13 +963,31 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
       throw Error(ExitCode::NoMandible, "no mandible found: no bone (no connected region above " +
                                             std::to_string(static_cast<int>(threshold)) + " HU of at least " +
                                             std::to_string(static_cast<int>(std::lround(opt.min_component_cm3))) + " cm3)");
-    const auto f2 = component_features(rl2->GetOutput(), n2, cg);
-    unsigned best = 0;
-    for (unsigned l = 1; l <= n2; ++l)
-      if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
-    if (best == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone is at least 40 mm wide left-right");
+    auto f2 = component_features(rl2->GetOutput(), n2, cg);
     const auto* lab = rl2->GetOutput()->GetBufferPointer();
-    for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
+    unsigned best = 0;
+    if (by_atlas) {  // the bone component with the most atlas evidence
+      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+        if (lab[i]) f2[lab[i]].prior_sum += prior[i];
+      best = pick_by_atlas(f2, voxel_mm3, atlas_mm3, 0.0);
+      if (best == 0) {
+        // Fused to other bones and without a core of its own (a thin
+        // cortex around fatty marrow): the bone where the atlas places the
+        // mandible, said as such.
+        r.warnings.back() = "mandible not separated from the other bones by the image: the bone where the mandible atlas "
+                            "gives a probability of at least " + std::to_string(kAtlasRegionP).substr(0, 4) +
+                            " was taken; its borders with the skull base and maxilla follow the atlas, not the scan";
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < crop_mask.size(); ++i) n += crop_mask[i] = b_crop[i] && prior[i] >= kAtlasRegionP;
+        if (n == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone lies where the mandible atlas places the mandible");
+      }
+    } else {
+      for (unsigned l = 1; l <= n2; ++l)
+        if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
+      if (best == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone is at least 40 mm wide left-right");
+    }
+    if (best)
+      for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
   } else {
     // Watershed from all markers on -distance: boundaries settle on the necks.
     std::vector<float> landscape(cg.voxel_count());
@@ -1469,10 +1577,45 @@ static void check_width(Result& r) {
                          "teeth in occlusion: docs/segmentation.md)");
 }
 
+static Result segment_auto_with(const Volume& ct, const Options& opt, GridContext whole);
+
+// Soft Dice of the mask with the atlas's mandible probability p:
+// 2 sum_mask(p) / (|mask| + sum(p)), volumes in mm3; sum(p) is the atlas's
+// integral times scale^3 (its part outside the scan counted too: a mandible
+// cut by the scan's edge agrees less).
+static double atlas_agreement(const Mask& m, const atlas::Fit& fit) {
+  if (!fit.found) return -1;
+  const atlas::Atlas& a = atlas::shipped();
+  const double atlas_mm3 = atlas::mandible_mass_mm3(a, fit.pose);
+  const Geometry& g = m.geom;
+  double in = 0, n = 0;
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        if (m.data[g.linear(i, j, k)]) {
+          n += 1;
+          in += atlas::mandible_prior(a, fit.pose, g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+        }
+  const double v = g.voxel_volume_mm3();
+  return n > 0 ? 2 * in * v / (n * v + atlas_mm3) : 0.0;
+}
+
 static Result segment_auto(const Volume& ct, const Options& opt) {
+  GridContext whole;
+  // Where the mandible is: the atlas placed in the scan (docs/atlas.md).
+  const atlas::Fit fit = opt.use_atlas ? atlas::fit_ct(ct, opt.bone_threshold_hu) : atlas::Fit{};
+  whole.atlas = &fit;
+  Result out = segment_auto_with(ct, opt, whole);
+  out.atlas = fit;
+  if (opt.use_atlas && !fit.found)
+    out.warnings.push_back("the mandible atlas did not fit this scan (NCC " + std::to_string(fit.ncc).substr(0, 5) +
+                           "): the mandible was identified by size and position alone (docs/atlas.md)");
+  return out;
+}
+
+static Result segment_auto_with(const Volume& ct, const Options& opt, GridContext whole) {
   const Geometry& g = ct.geom;
   const double native = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
-  GridContext whole;
   whole.native_max_spacing = native;
   const double mid = std::max(std::min(g.spacing[0], g.spacing[1]), std::min(std::max(g.spacing[0], g.spacing[1]), g.spacing[2]));
   whole.cortex_resolved = mid <= 1.25 && native <= opt.max_working_spacing_mm + 1e-6;
@@ -1688,6 +1831,7 @@ static Result segment_scanned(const Volume& ct, const Options& opt) {
   Result r = segment_auto(ct, opt);
   if (r.separation_radius_mm > 0) trim_welded_skull_base(ct, r);
   check_width(r);
+  r.atlas_agreement = atlas_agreement(r.mask, r.atlas);
   r.scanned_grid = ct.geom;
   return r;
 }

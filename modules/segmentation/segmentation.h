@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "atlas/atlas.h"
 #include "core/types.h"
 
 namespace ms::segmentation {
@@ -54,6 +55,10 @@ struct Options {
   // of teeth in occlusion leave little core in the ramus (8 mm, a crown's
   // height, cut a condylar process off; docs/segmentation.md).
   double thick_reach_mm = 20.0;
+  // Identify the mandible by the mandible atlas placed in the scan
+  // (docs/atlas.md); false, or when the atlas does not fit: by size and
+  // position (docs/segmentation.md, step 4).
+  bool use_atlas = true;
 };
 
 struct Result {
@@ -76,6 +81,11 @@ struct Result {
   double offset_hu = 0;             // estimated calibration offset (soft-tissue peak - 40 HU)
   double separation_radius_mm = 0;  // core depth used to separate the mandible (0: failed)
   std::string marker_source;        // "dense bone", "bone", or empty when separation failed
+  // The mandible atlas placed in the scan (found = false: not used), and the
+  // agreement of the mask with it: soft Dice 2 sum_mask(p) / (|mask| + sum(p))
+  // of the mask with the atlas's probability p, on the mask's grid (-1: not computed).
+  atlas::Fit atlas;
+  double atlas_agreement = -1;
   std::vector<std::string> warnings;
 };
 

@@ -1,0 +1,116 @@
+// Mandible atlas: where the mandible is in a head CT, learned from real
+// mandibles (docs/atlas.md).
+//
+// The atlas is two probability volumes in one frame (LPS axes, mm, origin at
+// the training mandibles' mean centroid): `context`, the mean bone fraction of
+// the training heads around their mandibles (mandible, maxilla, teeth, skull
+// base, cervical spine), and `mandible`, the fraction of training mandibles
+// covering each voxel. Both are mirror-symmetric (left/right is unknown in the
+// training data). scripts/build-atlas makes it from ../shared/data/openkbp-train
+// (folds 1-4 of scripts/cohort-folds.csv); the result is compiled into the
+// binary (atlas::shipped()).
+//
+// fit() places the atlas in a scan: a similarity pose (translation, three
+// angles, isotropic scale) that maximises the normalised cross-correlation of
+// `context` with the scan's bone fraction, found by a coarse exhaustive
+// search and a pattern search. Mirror poses (the atlas flipped
+// superior-inferior and/or antero-posterior) are searched too: when one fits
+// clearly better, the scan's declared orientation is likely wrong.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+
+namespace ms::atlas {
+
+// Axis-aligned LPS grid: voxel (i, j, k) is at origin + spacing * (i, j, k).
+struct Grid {
+  std::array<int, 3> n{0, 0, 0};
+  double spacing = 3.0;  // mm
+  Vec3 origin{0, 0, 0};  // LPS mm of voxel (0, 0, 0)
+  std::size_t count() const { return static_cast<std::size_t>(n[0]) * n[1] * n[2]; }
+  std::size_t linear(int i, int j, int k) const { return static_cast<std::size_t>(i) + static_cast<std::size_t>(n[0]) * (j + static_cast<std::size_t>(n[1]) * k); }
+};
+
+// Values on a grid; NaN marks voxels outside the scanned field of view.
+struct Field {
+  Grid grid;
+  std::vector<float> v;
+  // Trilinear value at an LPS point; NaN outside the grid or next to an unknown voxel.
+  float at(const Vec3& p) const;
+};
+
+struct Atlas {
+  Grid grid;                   // atlas frame
+  std::vector<float> context;  // mean bone fraction, [0, 1]
+  std::vector<float> mandible; // mandible probability, [0, 1]
+  int cases = 0;               // training scans (before mirroring)
+  std::string source;          // what it was built from
+};
+
+// Similarity pose atlas -> scan: p = t + scale * Rz(yaw) Rx(pitch) Ry(roll) * M a,
+// with M = diag(1, ±1, ±1) the mirror flips (flip bit 1: antero-posterior,
+// bit 2: superior-inferior). Angles in radians.
+struct Pose {
+  Vec3 t{0, 0, 0};
+  double pitch = 0, yaw = 0, roll = 0;
+  double scale = 1;
+  int flip = 0;
+  Vec3 apply(const Vec3& a) const;    // atlas -> scan
+  Vec3 inverse(const Vec3& p) const;  // scan -> atlas
+};
+
+// Result of fitting the atlas to a scan.
+struct Fit {
+  bool found = false;   // a pose with ncc >= kMinFitNcc and enough of the atlas in the scan
+  Pose pose;            // best upright pose (flip 0)
+  double ncc = -1;      // its normalised cross-correlation, [-1, 1]
+  double coverage = 0;  // fraction of the atlas box inside the scanned field of view
+  Pose mirrored;        // best pose with a flip (orientation check)
+  double mirrored_ncc = -1;
+  double seconds = 0;
+};
+
+// Below this NCC the atlas is taken as not found in the scan (docs/atlas.md).
+constexpr double kMinFitNcc = 0.35;
+
+// Bone fraction (HU >= bone_hu) of a CT on an axis-aligned LPS grid of the
+// given spacing covering the scan, Gaussian-blurred with sigma blur_mm (0:
+// none); voxels the scan does not reach are NaN.
+Field bone_fraction(const Volume& ct, double spacing_mm, double bone_hu, double blur_mm);
+// The same for a binary mask (fraction of the grid voxel covered).
+Field mask_fraction(const Mask& m, double spacing_mm, double blur_mm);
+
+// Fits atlas to a scan's bone fraction field (bone_fraction at the atlas's
+// spacing, blurred by kFieldBlurMm).
+Fit fit(const Atlas& atlas, const Field& scan_bone);
+// bone_fraction + fit with the shipped atlas.
+Fit fit_ct(const Volume& ct, double bone_hu);
+
+// Blur (mm) applied to every bone-fraction field, in training and at run time.
+constexpr double kFieldBlurMm = 3.0;
+
+// Refines pose so that `values` (on the atlas grid) correlates best with
+// field; coarse-to-fine pattern search over the seven parameters. Used by
+// fit() and by the atlas builder (values = the mandible probability, field =
+// a training mandible's mask fraction).
+Pose refine(const Grid& grid, const std::vector<float>& values, const Field& field, Pose start, double* ncc_out);
+
+// Mandible probability at a scan point under a pose (0 outside the atlas).
+double mandible_prior(const Atlas& atlas, const Pose& pose, const Vec3& lps);
+
+// The atlas's mandible volume under a pose: sum of p times the voxel volume (mm3).
+double mandible_mass_mm3(const Atlas& atlas, const Pose& pose);
+
+// The atlas compiled into this binary.
+const Atlas& shipped();
+
+// Serialised form (zlib-compressed; values quantised to 1/255).
+std::vector<std::uint8_t> serialise(const Atlas& atlas);
+Atlas deserialise(const std::uint8_t* data, std::size_t size);
+
+}  // namespace ms::atlas

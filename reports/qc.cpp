@@ -1,0 +1,107 @@
+#include "reports/qc.h"
+
+#include <cmath>
+#include <limits>
+
+#include "reports/run_summary.h"
+
+namespace ms::reports {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Mandible volume, cm3: the 90 clinical contours of the atlas's training
+// scans (OpenKBP folds 1-4) span 29-112 cm3 (median 63); the bounds are
+// widened for children (a mandible at 0.65 of adult size has 0.27 of the
+// volume) and for the difference between a 250 HU bone boundary and a
+// clinical outline.
+constexpr double kVolumeCm3[2] = {15.0, 150.0};
+// Intercondylar distance (Co_L - Co_R), mm: about 90-125 mm in adults, from
+// about 75 mm in young children (docs/qc.md); hard bounds well outside.
+constexpr double kBicondylarMm[2] = {60.0, 150.0};
+// Menton below the condyles along the head's superior axis, mm: the ramus and
+// body make 50-70 mm in adults; a skull vault or an upside-down head gives
+// a negative height.
+constexpr double kCondyleMentonMm[2] = {25.0, 130.0};
+// Atlas fit: the 90 training scans fit at NCC 0.70-0.89; their mirrored
+// (upside-down or front-back) fits at 0.46-0.60.
+constexpr double kMinAtlasNcc = 0.6;
+// Agreement (soft Dice) of the mask with the atlas's mandible probability.
+constexpr double kMinAgreement = 0.35;
+
+double height_above(const Vec3& p, const Vec3& q, const Vec3& up) {
+  return (p[0] - q[0]) * up[0] + (p[1] - q[1]) * up[1] + (p[2] - q[2]) * up[2];
+}
+
+}  // namespace
+
+std::vector<const QcCheck*> Qc::failed() const {
+  std::vector<const QcCheck*> f;
+  for (const QcCheck& c : checks)
+    if (!c.passed) f.push_back(&c);
+  return f;
+}
+
+Qc evaluate_qc(const RunSummary& s) {
+  Qc q;
+  auto add = [&](const std::string& name, double value, const double range[2], const std::string& unit, const std::string& source,
+                 bool fatal, const std::string& message) {
+    QcCheck c;
+    c.name = name, c.value = value, c.lo = range[0], c.hi = range[1], c.unit = unit, c.source = source, c.fatal = fatal;
+    c.passed = std::isnan(value) || (value >= range[0] && value <= range[1]);
+    c.message = message;
+    q.checks.push_back(c);
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  // 1. Orientation and identification by the atlas (automatic segmentation only).
+  if (s.segmentation_method == "auto" && s.atlas_ncc >= -1) {
+    const double fit_range[2] = {kMinAtlasNcc, 1.0};
+    add("atlas_fit_ncc", s.atlas_ncc, fit_range, "", "90 OpenKBP training scans fit at 0.70-0.89 (docs/atlas.md)", false,
+        "the head does not look like the atlas's heads: the mandible's identification is uncertain");
+    const double margin_range[2] = {0.0, inf};
+    add("orientation_margin", s.atlas_ncc - s.atlas_mirrored_ncc, margin_range, "",
+        "upright fits beat mirrored ones by 0.19-0.42 on the training scans (docs/atlas.md)", true,
+        "the anatomy fits the atlas better upside down or front to back: the scan's orientation is likely wrong "
+        "(set it with --orientation)");
+    const double agree_range[2] = {kMinAgreement, 1.0};
+    add("atlas_agreement", s.atlas_agreement, agree_range, "",
+        "soft Dice of the mask with the atlas's mandible probability (docs/qc.md)", true,
+        "the segmented bone is not where the atlas puts the mandible: it is likely another bone");
+  }
+  // 2. Anatomical plausibility.
+  add("mandible_volume_cm3", s.seg_volume_mm3 / 1000.0, kVolumeCm3, "cm3",
+      "clinical contours of 90 OpenKBP adults: 29-112 cm3, widened for children", !s.truncated,
+      "the segmented volume is not a mandible's");
+  const Vec3* col = s.landmarks.landmarks.find("Co_L");
+  const Vec3* cor = s.landmarks.landmarks.find("Co_R");
+  const Vec3* me = s.landmarks.landmarks.find("Me");
+  double width = kNaN, drop = kNaN;
+  if (col && cor) width = std::sqrt(std::pow((*col)[0] - (*cor)[0], 2) + std::pow((*col)[1] - (*cor)[1], 2) + std::pow((*col)[2] - (*cor)[2], 2));
+  if (me && (col || cor)) {
+    const Vec3 up = s.head_superior();
+    double h = 0, n = 0;
+    for (const Vec3* c : {col, cor})
+      if (c) h += height_above(*c, *me, up), n += 1;
+    drop = h / n;
+  }
+  add("bicondylar_width_mm", width, kBicondylarMm, "mm", "adult intercondylar width ~90-125 mm, young children from ~75 mm", true,
+      "the condyles are not a mandible's width apart");
+  add("condyles_above_menton_mm", drop, kCondyleMentonMm, "mm",
+      "ramus and body height: 50-70 mm in adults; menton always below the condyles", true,
+      "menton is not below the condyles in the head frame: another bone, or the head read upside down");
+  // 3. Completeness (warnings).
+  int missing = 0;
+  for (const std::string& n : landmark_names()) missing += !s.landmarks.landmarks.has(n);
+  const double none[2] = {0, 0};
+  add("landmarks_missing", missing, none, "", "all 8 landmarks of METHOD.md are expected on a whole mandible", false,
+      "landmarks are missing; the SAF score uses the configurations that remain");
+  add("truncated", s.truncated ? 1 : 0, none, "", "the mandible must lie inside the scan", false,
+      "the mandible is cut by the scan's edge: scores are not comparable");
+  bool fail = false, warn = false;
+  for (const QcCheck& c : q.checks)
+    if (!c.passed) (c.fatal ? fail : warn) = true;
+  q.status = fail ? "fail" : warn ? "warn" : "pass";
+  return q;
+}
+
+}  // namespace ms::reports
