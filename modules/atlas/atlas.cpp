@@ -5,10 +5,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
 
+#include "core/debug_lap.h"
 #include "core/error.h"
 
 // The atlas compiled into the binary (generated from modules/atlas/mandible_atlas.bin).
@@ -143,7 +145,7 @@ double ncc(const Points& pts, const Pose& pose, const Field& f, double* coverage
   const Affine A = affine(pose);
   double n = 0, st = 0, sf = 0, stt = 0, sff = 0, stf = 0;
   const long np = static_cast<long>(pts.a.size());
-#pragma omp parallel for schedule(static) reduction(+ : n, st, sf, stt, sff, stf)
+#pragma omp parallel for schedule(static) reduction(+ : n, st, sf, stt, sff, stf) if (np > 50000)
   for (long i = 0; i < np; ++i) {
     const float x = f.at(A(pts.a[i]));
     if (std::isnan(x)) continue;
@@ -222,21 +224,15 @@ Field fraction_field(const Volume& ct, double spacing, double level) {
     for (std::size_t i = 0; i < f.v.size(); ++i)
       if (all[i]) f.v[i] = static_cast<float>(bone[i]) / static_cast<float>(all[i]);
   } else {
-    // Gather: 2 x 2 x 2 trilinear samples of the scan per grid voxel.
+    // Gather: the scan (trilinear) at each grid voxel's centre, 0 or 1; the
+    // blur that follows makes it a fraction (the scan is as coarse as the grid).
     const long nz = f.grid.n[2];
 #pragma omp parallel for schedule(static)
     for (long K = 0; K < nz; ++K)
       for (int J = 0; J < f.grid.n[1]; ++J)
         for (int I = 0; I < f.grid.n[0]; ++I) {
-          int known = 0, above = 0;
-          for (int c = 0; c < 8; ++c) {
-            const Vec3 q = grid_point(f.grid, I + ((c & 1) ? 0.25 : -0.25), J + ((c & 2) ? 0.25 : -0.25), K + ((c & 4) ? 0.25 : -0.25));
-            const double h = interpolate(ct, q);
-            if (std::isnan(h)) continue;
-            ++known;
-            above += h >= level;
-          }
-          if (known) f.v[f.grid.linear(I, J, static_cast<int>(K))] = static_cast<float>(above) / static_cast<float>(known);
+          const double h = interpolate(ct, grid_point(f.grid, I, J, static_cast<double>(K)));
+          if (!std::isnan(h)) f.v[f.grid.linear(I, J, static_cast<int>(K))] = h >= level ? 1.0f : 0.0f;
         }
   }
   return f;
@@ -249,7 +245,8 @@ struct Candidate {
   Pose pose;
 };
 
-void coarse_search(const Points& pts, const Pose& rot, const Field& f, std::vector<Candidate>* out) {
+void coarse_search(const Points& pts, const Pose& rot, const Field& f, const std::vector<std::uint8_t>& near_bone,
+                   std::vector<Candidate>* out) {
   Pose r0 = rot;
   r0.t = {0, 0, 0};
   const Affine A = affine(r0);
@@ -264,7 +261,7 @@ void coarse_search(const Points& pts, const Pose& rot, const Field& f, std::vect
   std::vector<double> score(ncell, -2);
 #pragma omp parallel for schedule(dynamic, 64)
   for (long c = 0; c < ncell; ++c) {
-    if (std::isnan(f.v[c])) continue;
+    if (std::isnan(f.v[c]) || !near_bone[c]) continue;
     const int i = static_cast<int>(c % g.n[0]), j = static_cast<int>((c / g.n[0]) % g.n[1]), k = static_cast<int>(c / (static_cast<long>(g.n[0]) * g.n[1]));
     double n = 0, st = 0, sf = 0, stt = 0, sff = 0, stf = 0;
     for (std::size_t p = 0; p < off.size(); ++p) {
@@ -299,6 +296,26 @@ void coarse_search(const Points& pts, const Pose& rot, const Field& f, std::vect
     cand.pose.t = grid_point(g, i, j, k);
     out->push_back(cand);
   }
+}
+
+// Cells of a coarse field within `reach` cells of bone (fraction above
+// kNearBoneFraction): the mandible's centroid lies within ~25 mm of its bone,
+// so the coarse search skips the air around the head and the far body.
+constexpr float kNearBoneFraction = 0.02f;
+
+std::vector<std::uint8_t> near_bone(const Field& f, int reach) {
+  const Grid& g = f.grid;
+  std::vector<std::uint8_t> bone(g.count()), out(g.count(), 0);
+  for (std::size_t i = 0; i < g.count(); ++i) bone[i] = f.v[i] > kNearBoneFraction;
+  for (int k = 0; k < g.n[2]; ++k)
+    for (int j = 0; j < g.n[1]; ++j)
+      for (int i = 0; i < g.n[0]; ++i) {
+        if (!bone[g.linear(i, j, k)]) continue;
+        for (int z = std::max(0, k - reach); z <= std::min(g.n[2] - 1, k + reach); ++z)
+          for (int y = std::max(0, j - reach); y <= std::min(g.n[1] - 1, j + reach); ++y)
+            for (int x = std::max(0, i - reach); x <= std::min(g.n[0] - 1, i + reach); ++x) out[g.linear(x, y, z)] = 1;
+      }
+  return out;
 }
 
 // The best `keep` candidates at least min_dist apart.
@@ -412,17 +429,21 @@ Fit fit(const Atlas& atlas, const Field& scan) {
   Fit out;
   if (atlas.cases == 0 || scan.v.empty()) return out;
   // 1. Coarse search: translations on a 4x coarser grid (12 mm), the atlas
-  //    upright and mirrored, pitched by 0 and +-25 degrees (head flexion).
+  //    upright pitched by 0 and +-25 degrees (head flexion), and mirrored.
   const Field f4 = downsample(scan, 4);
   const Points p4 = points_of(atlas.grid, atlas.context, 4);
+  const std::vector<std::uint8_t> near = near_bone(f4, 2);
+  DebugLap lap("MANDISYM_DEBUG_ATLAS", "atlas");
   std::vector<Candidate> upright, mirrored;
   for (int flip = 0; flip < 4; ++flip)
     for (double pitch : {-25.0, 0.0, 25.0}) {
+      if (flip && pitch != 0.0) continue;  // mirrored: the orientation check needs no flexion
       Pose r;
       r.flip = flip;
       r.pitch = pitch * kDeg;
-      coarse_search(p4, r, f4, flip ? &mirrored : &upright);
+      coarse_search(p4, r, f4, near, flip ? &mirrored : &upright);
     }
+  lap("coarse search");
   // 2. Pattern search from the best distinct candidates: first on 12 mm
   //    template points, then the best upright and mirrored on 6 mm points.
   const Points p2 = points_of(atlas.grid, atlas.context, 2);
@@ -452,8 +473,14 @@ Fit fit_ct(const Volume& ct, double bone_hu) {
   const Atlas& a = shipped();
   if (a.cases == 0) return {};
   const auto t0 = std::chrono::steady_clock::now();
+  DebugLap lap("MANDISYM_DEBUG_ATLAS", "atlas");
   const Field f = bone_fraction(ct, a.grid.spacing, bone_hu, kFieldBlurMm);
+  lap("bone fraction");
   Fit r = fit(a, f);
+  lap("fit");
+  if (lap.on())
+    std::fprintf(stderr, "  atlas: ncc %.3f (mirrored %.3f), coverage %.2f, scale %.2f, centre %.1f %.1f %.1f\n", r.ncc, r.mirrored_ncc,
+                 r.coverage, r.pose.scale, r.pose.t[0], r.pose.t[1], r.pose.t[2]);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

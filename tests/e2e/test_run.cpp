@@ -401,27 +401,54 @@ TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
   fs::remove_all(out);
 }
 
-TEST(EndToEnd, HeadsqNrrdFromTheIssueCompletes) {
+// headsq read as stored (no --orientation): the head is upside down in LPS.
+// The run completes, writes everything, and fails quality control naming
+// the orientation (exit 8; docs/qc.md): the atlas fits it better flipped.
+TEST(EndToEnd, HeadsqUpsideDownFailsQualityControlNamingTheOrientation) {
   const fs::path nhdr = headsq_nhdr();
   if (nhdr.empty()) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("headsq");
   std::string err;
-  ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 -o " + out.string() + " -q", &err), 0) << err;
+  ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 -o " + out.string() + " -q", &err), 8) << err;
+  EXPECT_NE(err.find("--orientation"), std::string::npos) << err;
   const Value r = load(out / "results.json");
   EXPECT_EQ(r.at("input").at("kind").as_string(), "nrrd");
-  // 3.2 x 3.2 x 1.5 mm: segmented on a 2 mm working grid; an adult mandible
-  // with teeth is ~60-120 cm3 (the whole skull would be several hundred).
-  const double cm3 = r.at("segmentation").at("volume_mm3").as_number() / 1000;
-  RecordProperty("headsq_mandible_cm3", std::to_string(cm3));
-  EXPECT_GT(cm3, 50.0);
-  EXPECT_LT(cm3, 130.0);
-  EXPECT_GT(r.at("segmentation").at("separation_depth_mm").as_number(), 0.0);
   EXPECT_EQ(r.at("input").at("size_voxels")[2].as_number(), 93);
+  EXPECT_EQ(r.at("qc").at("status").as_string(), "fail");
+  bool orientation_failed = false;
+  for (std::size_t i = 0; i < r.at("qc").at("checks").size(); ++i) {
+    const Value& c = r.at("qc").at("checks")[i];
+    if (c.at("name").as_string() == "orientation_margin") orientation_failed = !c.at("passed").as_bool();
+  }
+  EXPECT_TRUE(orientation_failed);
   // The file carries no anatomical orientation: the run must say so.
   bool warned = false;
   for (std::size_t i = 0; i < r.at("warnings").size(); ++i)
     warned |= r.at("warnings")[i].as_string().find("not anatomical") != std::string::npos;
   EXPECT_TRUE(warned);
+  // The report opens with the failure and shows no headline.
+  std::ifstream in(out / "report.html");
+  const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("failed quality control"), std::string::npos);
+  EXPECT_EQ(html.find("<h2>Headline</h2>"), std::string::npos);
+  fs::remove_all(out);
+}
+
+// headsq upright (--orientation LPI): the mandible, and QC does not fail.
+TEST(EndToEnd, HeadsqUprightIsTheMandibleAndPassesTheGate) {
+  const fs::path nhdr = headsq_nhdr();
+  if (nhdr.empty()) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("headsq_lpi");
+  std::string err;
+  ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 --orientation LPI -o " + out.string() + " -q", &err), 0) << err;
+  const Value r = load(out / "results.json");
+  // 3.2 x 3.2 x 1.5 mm: an adult mandible with teeth is ~60-120 cm3 (the whole skull would be several hundred).
+  const double cm3 = r.at("segmentation").at("volume_mm3").as_number() / 1000;
+  RecordProperty("headsq_mandible_cm3", std::to_string(cm3));
+  EXPECT_GT(cm3, 50.0);
+  EXPECT_LT(cm3, 130.0);
+  EXPECT_TRUE(r.at("segmentation").at("atlas").at("found").as_bool());
+  EXPECT_NE(r.at("qc").at("status").as_string(), "fail");
   // 3.2 mm voxels do not resolve the cortex: the surface follows the mask alone.
   EXPECT_EQ(r.at("parameters").at("surface_guide_level_hu").as_string(), "none");
   fs::remove_all(out);
