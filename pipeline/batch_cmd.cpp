@@ -60,7 +60,7 @@ void on_sigint(int) { g_interrupted = true; }
 struct Study {
   std::string id;   // safe folder name
   std::string path;
-  std::string status = "pending";  // ok | failed | skipped (already done)
+  std::string status = "pending";  // ok | qc_failed | failed | skipped (already done)
   int exit_code = -1;
   std::string error;
   double seconds = 0;
@@ -290,6 +290,9 @@ int batch_command(const cli::Args& args) {
     s.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
     if (s.exit_code == 0 && complete(out / s.id)) {
       s.status = "ok";
+    } else if (s.exit_code == static_cast<int>(ExitCode::QcFailed) && complete(out / s.id)) {
+      s.status = "qc_failed";  // every output written; the checks that failed are in its results.json (docs/qc.md)
+      s.error = first_error_line(out / ".logs" / (s.id + ".log"));
     } else if (g_interrupted && WIFSIGNALED(st)) {
       s.status = "not run (interrupted)";
     } else {
