@@ -252,20 +252,8 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.seg_offset_hu = seg.offset_hu;
     S.seg_separation_mm = seg.separation_radius_mm;
     S.seg_marker_source = seg.marker_source;
-    if (seg.atlas.ncc >= -1) {
-      constexpr double kDegPerRad = 57.29577951308232;
-      S.atlas_found = seg.atlas.found;
-      S.atlas_ncc = seg.atlas.ncc;
-      S.atlas_mirrored_ncc = seg.atlas.mirrored_ncc;
-      S.atlas_coverage = seg.atlas.coverage;
-      S.atlas_agreement = seg.atlas_agreement;
-      S.atlas_centre = seg.atlas.pose.t;
-      S.atlas_scale = seg.atlas.pose.scale;
-      S.atlas_pitch_deg = seg.atlas.pose.pitch * kDegPerRad;
-      S.atlas_yaw_deg = seg.atlas.pose.yaw * kDegPerRad;
-      S.atlas_roll_deg = seg.atlas.pose.roll * kDegPerRad;
-      S.atlas_seconds = seg.atlas.seconds;
-    }
+    S.atlas = seg.atlas;
+    S.atlas_agreement = seg.atlas_agreement;
     for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
     stage("segment", 2);
     mask_outputs = std::async(std::launch::async, [&scan, &seg, &staging, figures_on] {

@@ -29,10 +29,6 @@ constexpr double kMinAtlasNcc = 0.6;
 // Agreement (soft Dice) of the mask with the atlas's mandible probability.
 constexpr double kMinAgreement = 0.35;
 
-double height_above(const Vec3& p, const Vec3& q, const Vec3& up) {
-  return (p[0] - q[0]) * up[0] + (p[1] - q[1]) * up[1] + (p[2] - q[2]) * up[2];
-}
-
 }  // namespace
 
 std::vector<const QcCheck*> Qc::failed() const {
@@ -54,12 +50,12 @@ Qc evaluate_qc(const RunSummary& s) {
   };
   const double inf = std::numeric_limits<double>::infinity();
   // 1. Orientation and identification by the atlas (automatic segmentation only).
-  if (s.segmentation_method == "auto" && s.atlas_ncc >= -1) {
+  if (s.segmentation_method == "auto" && s.atlas.ncc >= -1) {
     const double fit_range[2] = {kMinAtlasNcc, 1.0};
-    add("atlas_fit_ncc", s.atlas_ncc, fit_range, "", "90 OpenKBP training scans fit at 0.70-0.89 (docs/atlas.md)", false,
+    add("atlas_fit_ncc", s.atlas.ncc, fit_range, "", "90 OpenKBP training scans fit at 0.70-0.89 (docs/atlas.md)", false,
         "the head does not look like the atlas's heads: the mandible's identification is uncertain");
     const double margin_range[2] = {0.0, inf};
-    add("orientation_margin", s.atlas_ncc - s.atlas_mirrored_ncc, margin_range, "",
+    add("orientation_margin", s.atlas.ncc - s.atlas.mirrored_ncc, margin_range, "",
         "upright fits beat mirrored ones by 0.19-0.42 on the training scans (docs/atlas.md)", true,
         "the anatomy fits the atlas better upside down or front to back: the scan's orientation is likely wrong "
         "(set it with --orientation)");
@@ -76,12 +72,12 @@ Qc evaluate_qc(const RunSummary& s) {
   const Vec3* cor = s.landmarks.landmarks.find("Co_R");
   const Vec3* me = s.landmarks.landmarks.find("Me");
   double width = kNaN, drop = kNaN;
-  if (col && cor) width = std::sqrt(std::pow((*col)[0] - (*cor)[0], 2) + std::pow((*col)[1] - (*cor)[1], 2) + std::pow((*col)[2] - (*cor)[2], 2));
+  if (col && cor) width = distance(*col, *cor);
   if (me && (col || cor)) {
     const Vec3 up = s.head_superior();
     double h = 0, n = 0;
     for (const Vec3* c : {col, cor})
-      if (c) h += height_above(*c, *me, up), n += 1;
+      if (c) h += dot(*c - *me, up), n += 1;
     drop = h / n;
   }
   add("bicondylar_width_mm", width, kBicondylarMm, "mm", "adult intercondylar width ~90-125 mm, young children from ~75 mm", true,

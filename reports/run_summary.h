@@ -30,11 +30,10 @@ struct RunSummary {
   bool truncated = false;
   double seg_threshold_hu = 0, seg_offset_hu = 0, seg_separation_mm = 0;
   std::string seg_marker_source;
-  // The mandible atlas placed in the scan (docs/atlas.md); atlas_ncc < -1: not fitted.
-  bool atlas_found = false;
-  double atlas_ncc = -2, atlas_mirrored_ncc = -2, atlas_coverage = 0, atlas_agreement = -1;
-  Vec3 atlas_centre{0, 0, 0};
-  double atlas_scale = 1, atlas_pitch_deg = 0, atlas_yaw_deg = 0, atlas_roll_deg = 0, atlas_seconds = 0;
+  // The mandible atlas placed in the scan (docs/atlas.md; ncc < -1: not
+  // fitted) and the mask's agreement with it (-1: not computed).
+  atlas::Fit atlas;
+  double atlas_agreement = -1;
   surface::MeshStats mesh;
   Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
   double closing_mm = 0;          // closing before meshing (0 = none)

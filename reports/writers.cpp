@@ -121,6 +121,73 @@ void write_text_atomic(const std::string& path, const std::string& text) {
   if (ec) throw Error(ExitCode::OutputFailed, path + ": cannot write: " + ec.message());
 }
 
+namespace {
+
+using json::Value;
+
+// results.json segmentation.atlas: the atlas's placement (docs/atlas.md).
+Value atlas_json(const RunSummary& s) {
+  constexpr double kDegPerRad = 57.29577951308232;
+  const atlas::Fit& f = s.atlas;
+  Value at = Value::object();
+  at["found"] = f.found;
+  at["ncc"] = f.ncc;
+  at["mirrored_ncc"] = f.mirrored_ncc;
+  at["coverage"] = f.coverage;
+  at["agreement"] = s.atlas_agreement >= 0 ? Value(s.atlas_agreement) : Value();
+  at["centre_lps_mm"] = Value::array_of(f.pose.t);
+  at["scale"] = f.pose.scale;
+  at["pitch_deg"] = f.pose.pitch * kDegPerRad;
+  at["yaw_deg"] = f.pose.yaw * kDegPerRad;
+  at["roll_deg"] = f.pose.roll * kDegPerRad;
+  at["seconds"] = f.seconds;
+  return at;
+}
+
+// results.json qc: status and every check (docs/qc.md).
+Value qc_json(const RunSummary& s) {
+  Value qc = Value::object();
+  qc["status"] = s.qc.status;
+  Value checks = Value::array();
+  for (const QcCheck& c : s.qc.checks) {
+    Value v = Value::object();
+    v["name"] = c.name;
+    v["value"] = std::isnan(c.value) ? Value() : Value(c.value);
+    v["allowed"] = Value::array_of(std::array<double, 2>{c.lo, c.hi});
+    if (!c.unit.empty()) v["unit"] = c.unit;
+    v["source"] = c.source;
+    v["passed"] = c.passed;
+    v["severity"] = c.fatal ? "fail" : "warn";
+    if (!c.passed) v["meaning"] = c.message;
+    checks.push_back(v);
+  }
+  qc["checks"] = checks;
+  qc["head_frame"] = s.palate.found ? "palatal" : "scan_axes";
+  return qc;
+}
+
+// The report's quality-control section: a failed run opens with a red banner
+// listing its failures (docs/qc.md), then the table of every check.
+void qc_html(std::ostringstream& h, const RunSummary& s) {
+  const auto E = html_escape;
+  auto value = [](double v) { return std::isnan(v) ? std::string("n/a") : fixed(v); };
+  if (s.qc.status == "fail") {
+    h << "<div class=\"qcfail\" role=\"alert\"><strong>Result failed quality control &mdash; do not use these numbers.</strong><ul>\n";
+    for (const QcCheck* c : s.qc.failed())
+      if (c->fatal)
+        h << "<li><b>" << E(c->name) << "</b> = " << value(c->value) << " (allowed " << fixed(c->lo) << " to " << fixed(c->hi)
+          << "): " << E(c->message) << ". <span class=\"muted\">" << E(c->source) << "</span></li>\n";
+    h << "</ul></div>\n";
+  }
+  h << "<h2>Quality control: " << E(s.qc.status) << "</h2>\n<table><tr><th>check</th><th>value</th><th>allowed</th><th>result</th><th>source</th></tr>\n";
+  for (const QcCheck& c : s.qc.checks)
+    h << "<tr><td>" << E(c.name) << "</td><td>" << value(c.value) << "</td><td>" << fixed(c.lo) << " &ndash; " << fixed(c.hi)
+      << "</td><td>" << (c.passed ? "pass" : c.fatal ? "FAIL" : "warn") << "</td><td>" << E(c.source) << "</td></tr>\n";
+  h << "</table>\n";
+}
+
+}  // namespace
+
 json::Value results_json(const RunSummary& s) {
   using json::Value;
   auto root = Value::object();
@@ -152,41 +219,10 @@ json::Value results_json(const RunSummary& s) {
     seg["calibration_offset_hu"] = s.seg_offset_hu;
     seg["separation_depth_mm"] = s.seg_separation_mm > 0 ? Value(s.seg_separation_mm) : Value();
     seg["marker_source"] = s.seg_marker_source.empty() ? Value() : Value(s.seg_marker_source);
-    if (s.atlas_ncc >= -1) {
-      auto& at = seg["atlas"];
-      at["found"] = s.atlas_found;
-      at["ncc"] = s.atlas_ncc;
-      at["mirrored_ncc"] = s.atlas_mirrored_ncc;
-      at["coverage"] = s.atlas_coverage;
-      at["agreement"] = s.atlas_agreement >= 0 ? Value(s.atlas_agreement) : Value();
-      at["centre_lps_mm"] = Value::array_of(s.atlas_centre);
-      at["scale"] = s.atlas_scale;
-      at["pitch_deg"] = s.atlas_pitch_deg;
-      at["yaw_deg"] = s.atlas_yaw_deg;
-      at["roll_deg"] = s.atlas_roll_deg;
-      at["seconds"] = s.atlas_seconds;
-    }
+    if (s.atlas.ncc >= -1) seg["atlas"] = atlas_json(s);
   }
 
-  {
-    auto& qc = root["qc"];
-    qc["status"] = s.qc.status;
-    Value checks = Value::array();
-    for (const QcCheck& c : s.qc.checks) {
-      Value v = Value::object();
-      v["name"] = c.name;
-      v["value"] = std::isnan(c.value) ? Value() : Value(c.value);
-      v["allowed"] = Value::array_of(std::array<double, 2>{c.lo, c.hi});
-      if (!c.unit.empty()) v["unit"] = c.unit;
-      v["source"] = c.source;
-      v["passed"] = c.passed;
-      v["severity"] = c.fatal ? "fail" : "warn";
-      if (!c.passed) v["meaning"] = c.message;
-      checks.push_back(v);
-    }
-    qc["checks"] = checks;
-    qc["head_frame"] = s.palate.found ? "palatal" : "scan_axes";
-  }
+  root["qc"] = qc_json(s);
 
   auto& mesh = root["mesh"];
   mesh["vertices"] = s.mesh.vertices;
@@ -523,22 +559,7 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << fixed(s.grid.spacing[2]) << " mm. Pixel data SHA-256 <code>" << E(s.scan.pixel_sha256.substr(0, 16))
     << "&hellip;</code></p>\n";
   const bool qc_failed = s.qc.status == "fail";
-  if (qc_failed) {
-    // A failed result opens with its failures; no headline or interpretation bands (docs/qc.md).
-    h << "<div class=\"qcfail\" role=\"alert\"><strong>Result failed quality control &mdash; do not use these numbers.</strong><ul>\n";
-    for (const QcCheck* c : s.qc.failed())
-      if (c->fatal)
-        h << "<li><b>" << E(c->name) << "</b> = " << (std::isnan(c->value) ? std::string("n/a") : fixed(c->value)) << " (allowed "
-          << fixed(c->lo) << " to " << fixed(c->hi) << "): " << E(c->message) << ". <span class=\"muted\">" << E(c->source)
-          << "</span></li>\n";
-    h << "</ul></div>\n";
-  }
-  h << "<h2>Quality control: " << E(s.qc.status) << "</h2>\n<table><tr><th>check</th><th>value</th><th>allowed</th><th>result</th><th>source</th></tr>\n";
-  for (const QcCheck& c : s.qc.checks)
-    h << "<tr><td>" << E(c.name) << "</td><td>" << (std::isnan(c.value) ? std::string("n/a") : fixed(c.value)) << "</td><td>"
-      << fixed(c.lo) << " &ndash; " << fixed(c.hi) << "</td><td>" << (c.passed ? "pass" : c.fatal ? "FAIL" : "warn") << "</td><td>"
-      << E(c.source) << "</td></tr>\n";
-  h << "</table>\n";
+  qc_html(h, s);
   for (const auto& w : s.warnings) h << "<div class=\"warn\">&#9888; " << E(w) << "</div>\n";
 
   if (!qc_failed) {

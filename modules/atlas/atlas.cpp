@@ -325,8 +325,7 @@ std::vector<Candidate> best_distinct(std::vector<Candidate> c, std::size_t keep,
   for (const Candidate& x : c) {
     bool near = false;
     for (const Candidate& y : out) {
-      const Vec3 d = x.pose.t - y.pose.t;
-      near = near || (std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) < min_dist && x.pose.flip == y.pose.flip);
+      near = near || (distance(x.pose.t, y.pose.t) < min_dist && x.pose.flip == y.pose.flip);
     }
     if (!near) out.push_back(x);
     if (out.size() == keep) break;
@@ -390,14 +389,13 @@ float Field::at(const Vec3& p) const {
 Vec3 Pose::apply(const Vec3& a) const { return affine(*this)(a); }
 
 Vec3 Pose::inverse(const Vec3& p) const {
-  const Rot R = rotation(*this);
+  // A = scale R M has orthogonal columns of length scale: A^-1 = A^T / scale^2.
+  const Affine A = affine(*this);
   const Vec3 d = p - t;
   Vec3 a{0, 0, 0};
   for (int c = 0; c < 3; ++c)
-    for (int r = 0; r < 3; ++r) a[c] += R.m[3 * r + c] * d[r];
-  const double M[3] = {1.0, (flip & 1) ? -1.0 : 1.0, (flip & 2) ? -1.0 : 1.0};
-  for (int c = 0; c < 3; ++c) a[c] *= M[c] / scale;
-  return a;
+    for (int r = 0; r < 3; ++r) a[c] += A.A[3 * r + c] * d[r];
+  return (1.0 / (scale * scale)) * a;
 }
 
 Field bone_fraction(const Volume& ct, double spacing_mm, double bone_hu, double blur_mm) {
@@ -425,7 +423,6 @@ Pose refine(const Grid& grid, const std::vector<float>& values, const Field& fie
 }
 
 Fit fit(const Atlas& atlas, const Field& scan) {
-  const auto t0 = std::chrono::steady_clock::now();
   Fit out;
   if (atlas.cases == 0 || scan.v.empty()) return out;
   // 1. Coarse search: translations on a 4x coarser grid (12 mm), the atlas
@@ -465,7 +462,6 @@ Fit fit(const Atlas& atlas, const Field& scan) {
   out.mirrored_ncc = sm;
   if (su > -1) ncc(p2, out.pose, scan, &out.coverage);
   out.found = su >= kMinFitNcc;
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
 
@@ -485,30 +481,26 @@ Fit fit_ct(const Volume& ct, double bone_hu) {
   return r;
 }
 
-double mandible_prior(const Atlas& atlas, const Pose& pose, const Vec3& lps) {
-  const Vec3 a = pose.inverse(lps);
-  const Grid& g = atlas.grid;
-  const double q[3] = {(a[0] - g.origin[0]) / g.spacing, (a[1] - g.origin[1]) / g.spacing, (a[2] - g.origin[2]) / g.spacing};
-  int i0[3];
-  double w[3];
-  for (int k = 0; k < 3; ++k) {
-    if (!(q[k] >= 0) || q[k] > g.n[k] - 1) return 0.0;
-    i0[k] = std::min(static_cast<int>(q[k]), g.n[k] - 2);
-    w[k] = q[k] - i0[k];
-  }
-  double acc = 0;
-  for (int c = 0; c < 8; ++c) {
-    const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;
-    const double wt = (dx ? w[0] : 1 - w[0]) * (dy ? w[1] : 1 - w[1]) * (dz ? w[2] : 1 - w[2]);
-    acc += wt * atlas.mandible[g.linear(i0[0] + dx, i0[1] + dy, i0[2] + dz)];
-  }
-  return acc;
+MandiblePrior::MandiblePrior(const Atlas& atlas, const Pose& pose) {
+  p_.grid = atlas.grid;
+  p_.v = atlas.mandible;
+  // a = A^-1 (p - t) with A = scale R M: A^-1 = M R^T / scale.
+  const Affine A = affine(pose);
+  const double s2 = pose.scale * pose.scale;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) inv_[3 * r + c] = A.A[3 * c + r] / s2;
+  t_ = pose.t;
+  double sum = 0;
+  for (float v : atlas.mandible) sum += v;
+  mass_mm3_ = sum * std::pow(atlas.grid.spacing * pose.scale, 3);
 }
 
-double mandible_mass_mm3(const Atlas& a, const Pose& pose) {
-  double s = 0;
-  for (float v : a.mandible) s += v;
-  return s * std::pow(a.grid.spacing * pose.scale, 3);
+double MandiblePrior::at(const Vec3& lps) const {
+  const Vec3 d = lps - t_;
+  const Vec3 a{inv_[0] * d[0] + inv_[1] * d[1] + inv_[2] * d[2], inv_[3] * d[0] + inv_[4] * d[1] + inv_[5] * d[2],
+               inv_[6] * d[0] + inv_[7] * d[1] + inv_[8] * d[2]};
+  const float v = p_.at(a);
+  return std::isnan(v) ? 0.0 : v;
 }
 
 // Serialised layout, before compression: "MSATLAS1", int32 n[3], float64

@@ -72,7 +72,7 @@ struct Fit {
   double coverage = 0;  // fraction of the atlas box inside the scanned field of view
   Pose mirrored;        // best pose with a flip (orientation check)
   double mirrored_ncc = -1;
-  double seconds = 0;
+  double seconds = 0;   // fit_ct: bone fraction and search
 };
 
 // Below this NCC the atlas is taken as not found in the scan (docs/atlas.md).
@@ -100,11 +100,22 @@ constexpr double kFieldBlurMm = 3.0;
 // a training mandible's mask fraction).
 Pose refine(const Grid& grid, const std::vector<float>& values, const Field& field, Pose start, double* ncc_out);
 
-// Mandible probability at a scan point under a pose (0 outside the atlas).
-double mandible_prior(const Atlas& atlas, const Pose& pose, const Vec3& lps);
+// The atlas's mandible probability placed in a scan by a pose. The inverse
+// pose is composed once, so a sample is one affine map and a trilinear
+// lookup (it is taken at every bone voxel of a crop).
+class MandiblePrior {
+ public:
+  MandiblePrior(const Atlas& atlas, const Pose& pose);
+  double at(const Vec3& lps) const;  // 0 outside the atlas box
+  // Sum of p times the voxel volume under the pose (mm3): the atlas's mandible volume.
+  double mass_mm3() const { return mass_mm3_; }
 
-// The atlas's mandible volume under a pose: sum of p times the voxel volume (mm3).
-double mandible_mass_mm3(const Atlas& atlas, const Pose& pose);
+ private:
+  Field p_;
+  double inv_[9];
+  Vec3 t_;
+  double mass_mm3_ = 0;
+};
 
 // The atlas compiled into this binary.
 const Atlas& shipped();

@@ -171,8 +171,7 @@ int main(int argc, char** argv) {
   std::string worst_id;
   for (const Case& c : cases) {
     const Fit f = fit(atlas, c.bone);
-    const Vec3 d = f.pose.t - c.pose.t;
-    const double err = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double err = distance(f.pose.t, c.pose.t);
     sum += err;
     if (f.ncc < worst) worst = f.ncc, worst_id = c.id;
     std::printf("%s fit ncc %.3f mirrored %.3f, centre %.1f mm from the mask's pose, scale %.3f vs %.3f\n", c.id.c_str(), f.ncc,

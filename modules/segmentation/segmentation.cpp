@@ -12,6 +12,7 @@
 #include <limits>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <set>
 
 #include "atlas/atlas.h"
@@ -205,6 +206,21 @@ unsigned pick_by_atlas(const std::vector<Features>& f, double voxel_mm3, double 
     if (m > best_merit) best_merit = m, best = l;
   }
   return best;
+}
+
+// The atlas's mandible probability at every bone voxel of a grid (0 elsewhere).
+std::vector<float> prior_at_bone(const atlas::MandiblePrior& prior, const std::uint8_t* bone, const Geometry& g) {
+  std::vector<float> out(g.voxel_count(), 0.0f);
+  const long nz = static_cast<long>(g.size[2]);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        const std::size_t idx = g.linear(i, j, static_cast<std::size_t>(k));
+        if (bone[idx])
+          out[idx] = static_cast<float>(prior.at(g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k))));
+      }
+  return out;
 }
 
 // HU values of the crop region (geometry cg) of ct.
@@ -747,26 +763,12 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
           in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = set_at_index(loc, row + static_cast<double>(i) * qi);
       }
   }
-  // The atlas's mandible probability at every bone voxel of the crop.
   const bool by_atlas = ctx.atlas && ctx.atlas->found;
-  std::vector<float> prior;
-  if (by_atlas) {
-    prior.assign(cg.voxel_count(), 0.0f);
-    const auto* b = bone->GetBufferPointer();
-    const atlas::Atlas& at = atlas::shipped();
-    const long nz = static_cast<long>(cdims[2]);
-#pragma omp parallel for schedule(static)
-    for (long k = 0; k < nz; ++k)
-      for (std::size_t j = 0; j < cdims[1]; ++j)
-        for (std::size_t i = 0; i < cdims[0]; ++i) {
-          const std::size_t idx = cg.linear(i, j, static_cast<std::size_t>(k));
-          if (b[idx])
-            prior[idx] = static_cast<float>(atlas::mandible_prior(
-                at, ctx.atlas->pose, cg.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k))));
-        }
-    lap("atlas prior");
-  }
-  const double atlas_mm3 = by_atlas ? atlas::mandible_mass_mm3(atlas::shipped(), ctx.atlas->pose) : 0.0;
+  const std::optional<atlas::MandiblePrior> placed =
+      by_atlas ? std::optional<atlas::MandiblePrior>(std::in_place, atlas::shipped(), ctx.atlas->pose) : std::nullopt;
+  const std::vector<float> prior = by_atlas ? prior_at_bone(*placed, bone->GetBufferPointer(), cg) : std::vector<float>{};
+  lap("atlas prior");
+  const double atlas_mm3 = by_atlas ? placed->mass_mm3() : 0.0;
   auto pick = [&](const std::vector<Features>& f, double rr) {
     return by_atlas ? pick_by_atlas(f, voxel_mm3, atlas_mm3, min_located) : pick_mandible(f, voxel_mm3, rr, min_located);
   };
@@ -1585,19 +1587,13 @@ static Result segment_auto_with(const Volume& ct, const Options& opt, GridContex
 // cut by the scan's edge agrees less).
 static double atlas_agreement(const Mask& m, const atlas::Fit& fit) {
   if (!fit.found) return -1;
-  const atlas::Atlas& a = atlas::shipped();
-  const double atlas_mm3 = atlas::mandible_mass_mm3(a, fit.pose);
-  const Geometry& g = m.geom;
-  double in = 0, n = 0;
-  for (std::size_t k = 0; k < g.size[2]; ++k)
-    for (std::size_t j = 0; j < g.size[1]; ++j)
-      for (std::size_t i = 0; i < g.size[0]; ++i)
-        if (m.data[g.linear(i, j, k)]) {
-          n += 1;
-          in += atlas::mandible_prior(a, fit.pose, g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
-        }
-  const double v = g.voxel_volume_mm3();
-  return n > 0 ? 2 * in * v / (n * v + atlas_mm3) : 0.0;
+  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
+  const std::vector<float> p = prior_at_bone(prior, m.data.data(), m.geom);
+  double in = 0;
+  for (float v : p) in += v;
+  const double v = m.geom.voxel_volume_mm3();
+  const double n = static_cast<double>(m.count());
+  return n > 0 ? 2 * in * v / (n * v + prior.mass_mm3()) : 0.0;
 }
 
 static Result segment_auto(const Volume& ct, const Options& opt) {

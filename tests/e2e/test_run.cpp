@@ -401,15 +401,24 @@ TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
   fs::remove_all(out);
 }
 
+// Runs headsq (HU + 1024; the caller skips when headsq_nhdr() is empty) with
+// extra options into a new folder; empty when the exit code is not the expected one (failed).
+fs::path run_headsq(const std::string& options, const std::string& name, int expected_exit, std::string* err) {
+  const fs::path nhdr = headsq_nhdr();
+  const fs::path out = temp_dir(name);
+  const int code = run("run " + nhdr.string() + " --hu-offset -1024 " + options + " -o " + out.string() + " -q", err);
+  EXPECT_EQ(code, expected_exit) << *err;
+  return code == expected_exit ? out : fs::path();
+}
+
 // headsq read as stored (no --orientation): the head is upside down in LPS.
 // The run completes, writes everything, and fails quality control naming
 // the orientation (exit 8; docs/qc.md): the atlas fits it better flipped.
 TEST(EndToEnd, HeadsqUpsideDownFailsQualityControlNamingTheOrientation) {
-  const fs::path nhdr = headsq_nhdr();
-  if (nhdr.empty()) GTEST_SKIP() << "shared data not present";
-  const fs::path out = temp_dir("headsq");
+  if (headsq_nhdr().empty()) GTEST_SKIP() << "shared data not present";
   std::string err;
-  ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 -o " + out.string() + " -q", &err), 8) << err;
+  const fs::path out = run_headsq("", "headsq", 8, &err);
+  if (out.empty()) return;
   EXPECT_NE(err.find("--orientation"), std::string::npos) << err;
   const Value r = load(out / "results.json");
   EXPECT_EQ(r.at("input").at("kind").as_string(), "nrrd");
@@ -436,11 +445,10 @@ TEST(EndToEnd, HeadsqUpsideDownFailsQualityControlNamingTheOrientation) {
 
 // headsq upright (--orientation LPI): the mandible, and QC does not fail.
 TEST(EndToEnd, HeadsqUprightIsTheMandibleAndPassesTheGate) {
-  const fs::path nhdr = headsq_nhdr();
-  if (nhdr.empty()) GTEST_SKIP() << "shared data not present";
-  const fs::path out = temp_dir("headsq_lpi");
+  if (headsq_nhdr().empty()) GTEST_SKIP() << "shared data not present";
   std::string err;
-  ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 --orientation LPI -o " + out.string() + " -q", &err), 0) << err;
+  const fs::path out = run_headsq("--orientation LPI", "headsq_lpi", 0, &err);
+  if (out.empty()) return;
   const Value r = load(out / "results.json");
   // 3.2 x 3.2 x 1.5 mm: an adult mandible with teeth is ~60-120 cm3 (the whole skull would be several hundred).
   const double cm3 = r.at("segmentation").at("volume_mm3").as_number() / 1000;

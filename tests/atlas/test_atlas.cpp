@@ -1,0 +1,167 @@
+// The mandible atlas (docs/atlas.md): pose algebra, serialisation, the search
+// recovering a known pose and a known flip, and the fit on a real scan.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+
+#include "atlas/atlas.h"
+#include "core/error.h"
+#include "tests/support/openkbp.h"
+
+using namespace ms;
+using namespace ms::atlas;
+
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+// A scan-like field: the shipped atlas's context placed by `pose` on a 3 mm
+// grid around it (0 where the atlas box does not reach).
+Field posed_context(const Pose& pose) {
+  const Atlas& a = shipped();
+  Field ctx;
+  ctx.grid = a.grid;
+  ctx.v = a.context;
+  Field f;
+  f.grid.spacing = 3.0;
+  for (int k = 0; k < 3; ++k) {
+    f.grid.n[k] = 140;
+    f.grid.origin[k] = pose.t[k] - 210.0;
+  }
+  f.v.assign(f.grid.count(), 0.0f);
+  for (int k = 0; k < f.grid.n[2]; ++k)
+    for (int j = 0; j < f.grid.n[1]; ++j)
+      for (int i = 0; i < f.grid.n[0]; ++i) {
+        const Vec3 p{f.grid.origin[0] + 3.0 * i, f.grid.origin[1] + 3.0 * j, f.grid.origin[2] + 3.0 * k};
+        const float v = ctx.at(pose.inverse(p));
+        f.v[f.grid.linear(i, j, k)] = std::isnan(v) ? 0.0f : v;
+      }
+  return f;
+}
+
+}  // namespace
+
+TEST(Atlas, PoseInverseUndoesApply) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int n = 0; n < 50; ++n) {
+    Pose p;
+    p.t = {50 * u(rng), 50 * u(rng), 50 * u(rng)};
+    p.pitch = 0.5 * u(rng), p.yaw = 0.5 * u(rng), p.roll = 0.5 * u(rng);
+    p.scale = 1.0 + 0.3 * u(rng);
+    p.flip = n % 4;
+    const Vec3 a{80 * u(rng), 80 * u(rng), 80 * u(rng)};
+    EXPECT_LT(distance(p.inverse(p.apply(a)), a), 1e-9);
+    // A flip is a mirror: it changes the handedness (determinant sign) of the map.
+    const Vec3 o = p.apply({0, 0, 0}), x = p.apply({1, 0, 0}) - o, y = p.apply({0, 1, 0}) - o, z = p.apply({0, 0, 1}) - o;
+    const double det = dot(x, cross(y, z));
+    EXPECT_EQ(det < 0, p.flip == 1 || p.flip == 2) << p.flip;
+  }
+}
+
+TEST(Atlas, SerialisedAtlasReadsBackWithinItsQuantisation) {
+  Atlas a;
+  a.grid.n = {5, 4, 3};
+  a.grid.spacing = 2.5;
+  a.grid.origin = {-5, -3.75, -2.5};
+  a.cases = 12;
+  a.source = "test";
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0, 1);
+  for (std::size_t i = 0; i < a.grid.count(); ++i) a.context.push_back(u(rng)), a.mandible.push_back(u(rng));
+  const std::vector<std::uint8_t> bytes = serialise(a);
+  const Atlas b = deserialise(bytes.data(), bytes.size());
+  EXPECT_EQ(b.grid.n, a.grid.n);
+  EXPECT_EQ(b.grid.spacing, a.grid.spacing);
+  EXPECT_EQ(b.grid.origin, a.grid.origin);
+  EXPECT_EQ(b.cases, 12);
+  EXPECT_EQ(b.source, "test");
+  for (std::size_t i = 0; i < a.grid.count(); ++i) {
+    EXPECT_NEAR(b.context[i], a.context[i], 0.5 / 255 + 1e-6);
+    EXPECT_NEAR(b.mandible[i], a.mandible[i], 0.5 / 255 + 1e-6);
+  }
+  std::vector<std::uint8_t> bad = bytes;
+  bad.resize(bad.size() / 2);
+  EXPECT_THROW(deserialise(bad.data(), bad.size()), Error);
+}
+
+TEST(Atlas, ShippedAtlasIsBuiltAndMirrorSymmetric) {
+  const Atlas& a = shipped();
+  ASSERT_GT(a.cases, 0) << "modules/atlas/mandible_atlas.bin missing: run scripts/build-atlas";
+  const Grid& g = a.grid;
+  double asym = 0, mass = 0;
+  for (int k = 0; k < g.n[2]; ++k)
+    for (int j = 0; j < g.n[1]; ++j)
+      for (int i = 0; i < g.n[0]; ++i) {
+        asym += std::abs(a.mandible[g.linear(i, j, k)] - a.mandible[g.linear(g.n[0] - 1 - i, j, k)]);
+        mass += a.mandible[g.linear(i, j, k)];
+      }
+  EXPECT_LT(asym, 0.01 * mass);
+  // The mean mandible's volume lies within the training contours' 29-112 cm3.
+  const double cm3 = MandiblePrior(a, Pose{}).mass_mm3() / 1000;
+  EXPECT_GT(cm3, 29.0);
+  EXPECT_LT(cm3, 112.0);
+}
+
+// The search finds a pose it did not start from: shift, flexion, turn, tilt
+// and scale, and tells an upside-down placement from an upright one.
+TEST(Atlas, FitRecoversAKnownPoseAndAFlip) {
+  Pose truth;
+  truth.t = {12, -25, 40};
+  truth.pitch = 10 * kDeg, truth.yaw = -6 * kDeg, truth.roll = 4 * kDeg;
+  truth.scale = 1.07;
+  const Fit f = fit(shipped(), posed_context(truth));
+  ASSERT_TRUE(f.found);
+  EXPECT_GT(f.ncc, 0.95);
+  EXPECT_LT(distance(f.pose.t, truth.t), 3.0);
+  EXPECT_NEAR(f.pose.pitch, truth.pitch, 3 * kDeg);
+  EXPECT_NEAR(f.pose.yaw, truth.yaw, 3 * kDeg);
+  EXPECT_NEAR(f.pose.roll, truth.roll, 3 * kDeg);
+  EXPECT_NEAR(f.pose.scale, truth.scale, 0.03);
+  EXPECT_LT(f.mirrored_ncc, f.ncc - 0.2);
+
+  Pose upside_down = truth;
+  upside_down.flip = 2;  // superior-inferior mirror, as a scan read with the wrong slice order
+  const Fit g = fit(shipped(), posed_context(upside_down));
+  EXPECT_GT(g.mirrored_ncc, g.ncc + 0.2);
+}
+
+// A real scan (OpenKBP pt_245, 4.6 mm): the placed atlas overlaps the
+// clinical contour, and the same scan mirrored left-right places it at the
+// mirrored position.
+TEST(Atlas, RealScanFitsWhereTheContourIsAndMirrorsWithTheScan) {
+  const std::string dir = std::string(MANDISYM_SHARED_DATA) + "/openkbp/pt_245";
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const auto c = ms::testing::load_openkbp(dir);
+  const Fit f = fit_ct(c.ct, 250.0);
+  ASSERT_TRUE(f.found);
+  EXPECT_GT(f.ncc, f.mirrored_ncc + 0.15);
+  // Soft Dice of the contour with the placed probability.
+  const MandiblePrior prior(shipped(), f.pose);
+  const Geometry& g = c.mandible.geom;
+  double in = 0, n = 0;
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        if (c.mandible.data[g.linear(i, j, k)]) {
+          n += 1;
+          in += prior.at(g.index_to_lps(double(i), double(j), double(k)));
+        }
+  const double agreement = 2 * in * g.voxel_volume_mm3() / (n * g.voxel_volume_mm3() + prior.mass_mm3());
+  RecordProperty("agreement", std::to_string(agreement));
+  EXPECT_GT(agreement, 0.45);
+
+  Volume flipped = c.ct;
+  const Geometry& cg = c.ct.geom;
+  for (std::size_t k = 0; k < cg.size[2]; ++k)
+    for (std::size_t j = 0; j < cg.size[1]; ++j)
+      for (std::size_t i = 0; i < cg.size[0]; ++i) flipped.hu[cg.linear(i, j, k)] = c.ct.hu[cg.linear(cg.size[0] - 1 - i, j, k)];
+  const Fit m = fit_ct(flipped, 250.0);
+  ASSERT_TRUE(m.found);
+  const Vec3 q = cg.lps_to_index(f.pose.t);
+  const Vec3 expected = cg.index_to_lps(static_cast<double>(cg.size[0] - 1) - q[0], q[1], q[2]);
+  EXPECT_LT(distance(m.pose.t, expected), 3.0);
+  EXPECT_NEAR(m.ncc, f.ncc, 0.03);
+}
