@@ -397,7 +397,7 @@ TEST(AutoSegmentation, ThickSlicesAreSegmentedOrFlagged) {
   bool flagged = false;
   for (const auto& w : r.warnings) flagged |= w.find("may be another bone") != std::string::npos || w.find("not separated") != std::string::npos;
   std::printf("1 x 1 x 3 mm slabs, gap 1 mm: Dice %.4f, %s\n", d, flagged ? "flagged" : "not flagged");
-  // With the atlas (2026-12-04) the mandible's core is chosen by atlas evidence and this case
+  // With the atlas the mandible's core is chosen by atlas evidence and this case
   // gives Dice 0.78 without a warning (before: >= 0.9 or flagged): a known regression on 3 mm
   // slabs with the teeth 1 mm apart, held here so that it cannot get worse (docs/atlas.md).
   EXPECT_TRUE(d >= 0.75 || flagged) << "Dice " << d << " without a warning";
@@ -691,8 +691,8 @@ TEST(AutoSegmentation, OpenKbpAgreesWithClinicalContours) {
     std::printf("%s: Dice %.3f, %.1f cm3 (contour %.1f cm3)\n", pt, d, r.volume_mm3 / 1000,
                 c.mandible.count() * c.ct.geom.voxel_volume_mm3() / 1000);
     sum += d;
-    // With the atlas (2026-12-04) pt_245 0.869 -> 0.878 and pt_246 0.873 -> 0.886, but pt_243
-    // 0.822 -> 0.677: the core depth chosen by atlas evidence keeps less of its rami. pt_243 is
+    // With the atlas pt_245 scores 0.878 and pt_246 0.886, but pt_243 0.677 (0.822 before it,
+    // CHANGELOG.md): the core depth chosen by atlas evidence keeps less of its rami. pt_243 is
     // also the case whose mask changes with the slice storage order (0.822 / 0.653): a known
     // regression, held here so that it cannot get worse (docs/atlas.md, Limits).
     EXPECT_GE(d, std::string(pt) == "pt_243" ? 0.65 : 0.8) << pt;
