@@ -2,6 +2,11 @@
 // scans with mandible masks. Run through scripts/build-atlas.
 //
 //   mandisym-atlas-build --data DIR --folds CSV --use 1,2,3,4 --out FILE [--iterations N]
+//   mandisym-atlas-build --place CT [--hu-offset H] --out PRIOR.nii.gz
+//
+// --place fits the shipped atlas to one scan (as `mandisym run` does) and
+// writes the placed mandible probability on the scan's grid (float, 0-1), to
+// inspect a placement or to study the prior outside the pipeline.
 //
 // DIR/<id>/ct.nii.gz (stored HU + 1000) and DIR/<id>/mask.nii.gz for every id
 // of the CSV (id,fold) whose fold is listed in --use.
@@ -91,8 +96,37 @@ std::map<std::string, std::string> parse(int argc, char** argv) {
 
 }  // namespace
 
+int place(const std::string& ct_path, double hu_offset, const std::string& out) {
+  io::ReadOptions ro;
+  ro.hu_offset = hu_offset;
+  io::LoadedScan s = io::read_scan(ct_path, ro);
+  const Fit fit = fit_ct(s.volume, kBoneHu);
+  std::fprintf(stderr, "fit: found %d ncc %.3f mirrored %.3f scale %.3f\n", fit.found, fit.ncc, fit.mirrored_ncc, fit.pose.scale);
+  const MandiblePrior prior(shipped(), fit.pose);
+  Volume& v = s.volume;
+  const Geometry& g = v.geom;
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        v.hu[g.linear(i, j, k)] = fit.found ? static_cast<float>(prior.at(g.index_to_lps(double(i), double(j), double(k)))) : 0.0f;
+  io::write_volume(v, out);
+  return fit.found ? 0 : 3;
+}
+
 int main(int argc, char** argv) {
   auto args = parse(argc, argv);
+  if (args.count("--place")) {
+    if (!args.count("--out")) {
+      std::fprintf(stderr, "usage: mandisym-atlas-build --place CT [--hu-offset H] --out PRIOR.nii.gz\n");
+      return 2;
+    }
+    try {
+      return place(args["--place"], args.count("--hu-offset") ? std::stod(args["--hu-offset"]) : 0.0, args["--out"]);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "mandisym-atlas-build: %s\n", e.what());
+      return 1;
+    }
+  }
   if (!args.count("--data") || !args.count("--folds") || !args.count("--out")) {
     std::fprintf(stderr, "usage: mandisym-atlas-build --data DIR --folds CSV --use 1,2,3,4 --out FILE [--iterations N]\n");
     return 2;

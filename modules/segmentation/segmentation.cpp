@@ -1,5 +1,6 @@
 // ITK-facing translation unit: no system Eigen here (ENGINEERING.md).
 #include "segmentation/segmentation.h"
+#include "segmentation/atlas_zone.h"
 
 #include <itkConnectedComponentImageFilter.h>
 #include <itkImage.h>
@@ -1581,6 +1582,79 @@ static void check_width(Result& r) {
 
 static Result segment_auto_with(const Volume& ct, const Options& opt, GridContext whole);
 
+// Whether the scan resolves the mandible's cortex (the surface is then placed
+// at the half-maximum, finalize()): in-plane and slice spacing up to 1.25 mm.
+static bool resolves_cortex(const Geometry& g, const Options& opt) {
+  const double native = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
+  const double mid = std::max(std::min(g.spacing[0], g.spacing[1]), std::min(std::max(g.spacing[0], g.spacing[1]), g.spacing[2]));
+  return mid <= 1.25 && native <= opt.max_working_spacing_mm + 1e-6;
+}
+
+// The scan's index box holding the placed atlas's box, grown by one voxel
+// and clipped to the scan (empty when they do not meet).
+static MaskImage::RegionType atlas_region(const Geometry& g, const atlas::Atlas& a, const atlas::Pose& pose) {
+  std::array<double, 3> lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30};
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 corner{a.grid.origin[0] + a.grid.spacing * ((c & 1) ? a.grid.n[0] - 1 : 0),
+                      a.grid.origin[1] + a.grid.spacing * ((c & 2) ? a.grid.n[1] - 1 : 0),
+                      a.grid.origin[2] + a.grid.spacing * ((c & 4) ? a.grid.n[2] - 1 : 0)};
+    const Vec3 q = g.lps_to_index(pose.apply(corner));
+    for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], q[d]), hi[d] = std::max(hi[d], q[d]);
+  }
+  MaskImage::RegionType region;
+  for (int d = 0; d < 3; ++d) {
+    const long l = std::max(0L, static_cast<long>(std::floor(lo[d])) - 1);
+    const long h = std::min(static_cast<long>(g.size[d]) - 1, static_cast<long>(std::ceil(hi[d])) + 1);
+    region.SetIndex(d, l);
+    region.SetSize(d, h >= l ? static_cast<itk::SizeValueType>(h - l + 1) : 0);
+  }
+  return region;
+}
+
+// Calibration offset of the scan (estimate_offset) and, when it is large,
+// the warning that says so.
+static double calibration_offset(const Volume& ct, std::vector<std::string>& warnings) {
+  std::size_t soft = 0;
+  const double offset = estimate_offset(ct, &soft);
+  if (std::abs(offset) > 50)
+    warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(kSoftTissueHu + offset))) +
+                       " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
+                       " HU (calibration offset?)");
+  return offset;
+}
+
+// Identification and separation by the atlas (docs/segmentation.md): within
+// the placed atlas's box, (1) the bone mask at the bone threshold, (2) the
+// atlas's mandible probability at each bone voxel, (3) the zone and its free
+// appendices (atlas_zone_mask), (4) the surface level, closing and hole
+// filling of finalize().
+static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas::Fit& fit) {
+  SegLap lap;
+  Result r;
+  r.method = "auto";
+  r.marker_source = "atlas";
+  r.offset_hu = calibration_offset(ct, r.warnings);
+  r.threshold_hu = opt.bone_threshold_hu + r.offset_hu;
+  const MaskImage::RegionType region = atlas_region(ct.geom, atlas::shipped(), fit.pose);
+  Geometry cg = ct.geom;
+  for (int a = 0; a < 3; ++a) cg.size[a] = region.GetSize()[a];
+  if (cg.voxel_count() == 0) throw Error(ExitCode::NoMandible, "no mandible found: the mandible atlas lies outside the scan");
+  cg.origin = ct.geom.index_to_lps(static_cast<double>(region.GetIndex()[0]), static_cast<double>(region.GetIndex()[1]),
+                                   static_cast<double>(region.GetIndex()[2]));
+  const std::vector<float> hu = crop_values(ct, region, cg);
+  std::vector<std::uint8_t> bone(hu.size());
+  for (std::size_t i = 0; i < hu.size(); ++i) bone[i] = hu[i] >= r.threshold_hu;
+  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
+  const std::vector<float> p = prior_at_bone(prior, bone.data(), cg);
+  lap("atlas: bone and prior");
+  std::vector<std::uint8_t> mask = atlas_zone_mask(bone, p, cg.size);
+  lap("atlas: zone and appendices");
+  if (std::find(mask.begin(), mask.end(), 1) == mask.end())
+    throw Error(ExitCode::NoMandible, "no mandible found: no bone lies where the mandible atlas places the mandible (" +
+                                          std::to_string(static_cast<int>(r.threshold_hu)) + " HU)");
+  return finalize(ct, opt, region, std::move(mask), std::move(r), /*cortex_resolved=*/false);
+}
+
 // Soft Dice of the mask with the atlas's mandible probability p:
 // 2 sum_mask(p) / (|mask| + sum(p)), volumes in mm3; sum(p) is the atlas's
 // integral times scale^3 (its part outside the scan counted too: a mandible
@@ -1601,7 +1675,7 @@ static Result segment_auto(const Volume& ct, const Options& opt) {
   // Where the mandible is: the atlas placed in the scan (docs/atlas.md).
   const atlas::Fit fit = opt.use_atlas ? atlas::fit_ct(ct, opt.bone_threshold_hu) : atlas::Fit{};
   whole.atlas = &fit;
-  Result out = segment_auto_with(ct, opt, whole);
+  Result out = fit.found ? segment_by_atlas(ct, opt, fit) : segment_auto_with(ct, opt, whole);
   out.atlas = fit;
   if (opt.use_atlas && !fit.found)
     out.warnings.push_back("the mandible atlas did not fit this scan (NCC " + std::to_string(fit.ncc).substr(0, 5) +
@@ -1613,8 +1687,7 @@ static Result segment_auto_with(const Volume& ct, const Options& opt, GridContex
   const Geometry& g = ct.geom;
   const double native = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   whole.native_max_spacing = native;
-  const double mid = std::max(std::min(g.spacing[0], g.spacing[1]), std::min(std::max(g.spacing[0], g.spacing[1]), g.spacing[2]));
-  whole.cortex_resolved = mid <= 1.25 && native <= opt.max_working_spacing_mm + 1e-6;
+  whole.cortex_resolved = resolves_cortex(g, opt);
   if (native <= opt.max_working_spacing_mm + 1e-6) return segment_located(ct, opt, whole);
   // Coarse scans (docs/segmentation.md, "Coarse scans"): the cores and necks
   // the separation relies on are a few mm across, so axes coarser than
