@@ -299,7 +299,8 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     landmarks::PalateOptions po;
     po.plate_hu += seg.offset_hu;  // thresholds follow the scan's calibration offset
     po.air_hu += seg.offset_hu;
-    S.landmarks = landmarks::detect_in_head_frame(scan.volume, surf.mesh, lo, po, &S.palate);
+    if (seg.atlas.found) po.atlas_superior = seg.atlas.pose.superior();
+    S.landmarks = landmarks::detect_in_head_frame(scan.volume, surf.mesh, lo, po, &S.palate, &S.head_frame);
     for (const auto& w : S.landmarks.warnings) S.warnings.push_back(w);
     for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
     stage("landmarks", 4);

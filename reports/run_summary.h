@@ -41,8 +41,9 @@ struct RunSummary {
   bool closing_plugs_only = false;  // the closing was kept only where it removed handles
   std::size_t vertices_pulled = 0;  // vertices held to one voxel of the mask's boundary (surface.md)
   landmarks::Result landmarks;
-  landmarks::PalatalPlane palate;  // the head's superior direction (found = false: the scan's +S was used)
-  Vec3 head_superior() const { return palate.found ? palate.superior : Vec3{0, 0, 1}; }
+  landmarks::PalatalPlane palate;  // the palatal plane's fit (found = false: not found or rejected, palate.reason)
+  landmarks::HeadFrame head_frame;  // the frame used: palatal plane, mandible atlas or scan axes
+  Vec3 head_superior() const { return head_frame.superior; }
   reference::Result reference;
   reference::CranialResult cranial;  // found = false when not fitted (reason) or --no-cranial
   asymmetry::SafResult saf;

@@ -162,7 +162,7 @@ Value qc_json(const RunSummary& s) {
     checks.push_back(v);
   }
   qc["checks"] = checks;
-  qc["head_frame"] = s.palate.found ? "palatal" : "scan_axes";
+  qc["head_frame"] = s.head_frame.source;
   return qc;
 }
 
@@ -250,7 +250,7 @@ json::Value results_json(const RunSummary& s) {
 
   auto& hf = root["head_frame"];
   hf["superior"] = vec(s.head_superior());
-  hf["source"] = s.palate.found ? "palatal plane" : "scan axes";
+  hf["source"] = s.head_frame.source == "palatal" ? "palatal plane" : s.head_frame.source == "mandible" ? "mandible atlas" : "scan axes";
   if (s.palate.found) {
     hf["palatal_tilt_deg"] = s.palate.tilt_deg;
     hf["palatal_samples"] = s.palate.samples;
@@ -629,6 +629,10 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
       << fixed(s.palate.rms_mm) << " mm), which is tilted " << fixed(s.palate.tilt_deg, 1)
       << "&deg; to the scan's axial plane (+: posterior end higher, head flexed). Co and Cr are the most superior points, "
          "Me the lowest and Pog the most anterior in this frame, whatever the head's pitch in the scanner.</p>\n";
+  else if (s.head_frame.source == "mandible")
+    h << "<p>Head frame: palatal plane not used (" << E(s.palate.reason) << "); superior is the head's axis given by the "
+         "mandible atlas's pose (placed on the mandible and the bone around it; within about 15&deg; of the palatal "
+         "normal on the training scans).</p>\n";
   else
     h << "<p>Head frame: palatal plane not found (" << E(s.palate.reason) << "); superior is the scan's axis, so a head "
          "pitched in the scanner moves Me, Pog and Cr along their borders.</p>\n";

@@ -388,6 +388,11 @@ float Field::at(const Vec3& p) const {
 
 Vec3 Pose::apply(const Vec3& a) const { return affine(*this)(a); }
 
+Vec3 Pose::superior() const {
+  const Affine A = affine(*this);
+  return normalized(Vec3{A.A[2], A.A[5], A.A[8]});
+}
+
 Vec3 Pose::inverse(const Vec3& p) const {
   // A = scale R M has orthogonal columns of length scale: A^-1 = A^T / scale^2.
   const Affine A = affine(*this);

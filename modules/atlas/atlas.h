@@ -61,6 +61,9 @@ struct Pose {
   double scale = 1;
   int flip = 0;
   Vec3 apply(const Vec3& a) const;    // atlas -> scan
+  // The atlas's superior axis in the scan (unit, LPS): the training heads'
+  // mean superior direction carried by the pose.
+  Vec3 superior() const;
   Vec3 inverse(const Vec3& p) const;  // scan -> atlas
 };
 

@@ -432,28 +432,55 @@ Result detect(const Mesh& mesh, const Options& opt) {
   return r;
 }
 
+// The head frame from the palatal plane found and the atlas's superior axis
+// (HeadFrame's order); the palatal plane is marked not found when rejected.
+static HeadFrame choose_head_frame(PalatalPlane& pp, const PalateOptions& po) {
+  HeadFrame f;
+  if (pp.found && po.atlas_superior) {
+    const double c = std::clamp(dot(pp.superior, *po.atlas_superior), -1.0, 1.0);
+    const double deg = std::acos(c) * 180.0 / M_PI;
+    if (deg > po.max_atlas_deviation_deg) {
+      pp.found = false;
+      pp.reason = "the nasal-floor line found is " + std::to_string(static_cast<int>(std::lround(deg))) +
+                  " degrees from the head's superior axis given by the mandible atlas (more than " +
+                  std::to_string(static_cast<int>(std::lround(po.max_atlas_deviation_deg))) + "): rejected";
+    }
+  }
+  if (pp.found) {
+    f.superior = pp.superior, f.source = "palatal";
+  } else if (po.atlas_superior) {
+    f.superior = *po.atlas_superior, f.source = "mandible", f.why = pp.reason;
+  } else {
+    f.why = pp.reason;
+  }
+  return f;
+}
+
 Result detect_in_head_frame(const Volume& ct, const Mesh& mesh, Options options, const PalateOptions& palate_options,
-                            PalatalPlane* palate) {
+                            PalatalPlane* palate, HeadFrame* frame) {
   if (mesh.vertices.size() < 100 || mesh.faces.empty()) return detect(mesh, options);
   DebugLap lap("MANDISYM_DEBUG_LANDMARKS", "landmarks");
   options.plane = mandible_plane(mesh);
   lap("mandible plane");
-  const PalatalPlane pp = find_palatal_plane(ct, mesh, *options.plane, palate_options);
+  PalatalPlane pp = find_palatal_plane(ct, mesh, *options.plane, palate_options);
   lap("palatal plane");
+  const HeadFrame hf = choose_head_frame(pp, palate_options);
+  options.superior = hf.superior;
   std::vector<std::string> notes;
-  if (pp.found) {
-    options.superior = pp.superior;
-    if (pp.floor != "air")
-      notes.push_back("landmarks: the palatal plane was fitted to a nasal floor under soft tissue (no air in the nasal "
-                      "cavity): check it on qc_head_frame.png");
-  } else {
-    notes.push_back("landmarks: palatal plane not found (" + pp.reason +
+  if (hf.source == "palatal" && pp.floor != "air")
+    notes.push_back("landmarks: the palatal plane was fitted to a nasal floor under soft tissue (no air in the nasal "
+                    "cavity): check it on qc_head_frame.png");
+  if (hf.source == "mandible")
+    notes.push_back("landmarks: palatal plane not used (" + hf.why +
+                    "): 'superior' is the head's axis given by the mandible atlas's pose (within ~15 degrees)");
+  if (hf.source == "scan_axes")
+    notes.push_back("landmarks: palatal plane not found (" + hf.why +
                     "): 'superior' is the scan's axis, so a pitched head moves Me, Pog and Cr");
-  }
   Result r = detect(mesh, options);
   lap("detect");
   r.warnings.insert(r.warnings.begin(), notes.begin(), notes.end());
   if (palate) *palate = pp;
+  if (frame) *frame = hf;
   return r;
 }
 

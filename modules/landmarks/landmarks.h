@@ -52,7 +52,8 @@ Plane mandible_plane(const Mesh& mesh);
 // CT (palate.h), then detect() with its normal as superior — or the scan's
 // superior when no palate is found, with a warning saying so. options.plane
 // and options.superior are set here; `palate` (optional) receives the fit.
+// `frame` (optional) receives the head frame used (HeadFrame's order).
 Result detect_in_head_frame(const Volume& ct, const Mesh& mesh, Options options = {}, const PalateOptions& palate_options = {},
-                            PalatalPlane* palate = nullptr);
+                            PalatalPlane* palate = nullptr, HeadFrame* frame = nullptr);
 
 }  // namespace ms::landmarks

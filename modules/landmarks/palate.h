@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,24 @@ struct PalateOptions {
   double min_length_mm = 20;  // antero-posterior extent the supporting samples must span
   std::size_t min_samples = 20;
   double max_rms_mm = 1.5;
+  // The head's superior direction from the mandible atlas's pose (atlas.h,
+  // superior_axis), when the atlas was placed: a palatal line more than
+  // max_atlas_deviation_deg from it is rejected (a nasal floor found on the
+  // wrong structure), and it is the head frame when no palate is accepted.
+  // 40 degrees: on openkbp-train folds 1-4 the accepted palatal normals lie
+  // 12.5 degrees (median), 26 (95th percentile), at most 36.1 from it.
+  std::optional<Vec3> atlas_superior;
+  double max_atlas_deviation_deg = 40;
+};
+
+// The frame "superior" is taken in (docs/landmarks.md, "Head frame"), in the
+// documented order: the palatal plane; else the mandible atlas's pose
+// ("mandible": the atlas is placed on the mandible and the bone around it);
+// else the scan's axes.
+struct HeadFrame {
+  Vec3 superior{0, 0, 1};        // unit, LPS
+  std::string source = "scan_axes";  // "palatal" | "mandible" | "scan_axes"
+  std::string why;               // why the palatal plane was not used (empty when it was)
 };
 
 struct PalatalPlane {

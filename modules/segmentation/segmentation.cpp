@@ -1670,12 +1670,63 @@ static double atlas_agreement(const Mask& m, const atlas::Fit& fit) {
   return n > 0 ? 2 * in * v / (n * v + prior.mass_mm3()) : 0.0;
 }
 
+// How an image-separated mask stands against the placed atlas: the fraction
+// of its voxels within the training mandibles' support, and its share of the
+// zone mask's atlas evidence (sum of the mandible probability; same grid).
+struct ZoneCheck {
+  double in_support = 0;  // fraction of the image mask where p >= kAtlasSupportP
+  double evidence = 0;    // its sum of p over the zone mask's
+};
+
+static ZoneCheck check_against_zone(const Mask& image, const Mask& zone, const atlas::Fit& fit) {
+  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
+  const std::vector<float> pi = prior_at_bone(prior, image.data.data(), image.geom);
+  const std::vector<float> pz = prior_at_bone(prior, zone.data.data(), zone.geom);
+  double n = 0, ei = 0, ez = 0, supp = 0;
+  for (std::size_t i = 0; i < image.data.size(); ++i) {
+    n += image.data[i];
+    supp += image.data[i] && pi[i] >= kAtlasSupportP;
+    ei += pi[i];
+    ez += pz[i];
+  }
+  return {n > 0 ? supp / n : 0.0, ez > 0 ? ei / ez : 0.0};
+}
+
+// Identification by the atlas, separation by the image where it resolves
+// the contacts (docs/segmentation.md, "Atlas zone and image separation"): on
+// scans up to max_working_spacing_mm the core/watershed separation runs
+// too, and its mask is taken when it lies within the training mandibles'
+// support (kImageInSupport) and holds most of the zone mask's atlas evidence
+// (kImageEvidenceShare): it then draws the borders the image shows (teeth
+// in occlusion, a resolved joint space) where the zone follows the atlas.
+constexpr double kImageInSupport = 0.97;
+constexpr double kImageEvidenceShare = 0.6;
+
+static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, const atlas::Fit& fit, const GridContext& whole) {
+  Result zone = segment_by_atlas(ct, opt, fit);
+  const Geometry& g = ct.geom;
+  if (std::max({g.spacing[0], g.spacing[1], g.spacing[2]}) > opt.max_working_spacing_mm + 1e-6) return zone;
+  Result image;
+  try {
+    image = segment_auto_with(ct, opt, whole);
+  } catch (const Error&) {
+    return zone;
+  }
+  if (image.separation_radius_mm <= 0) return zone;
+  const ZoneCheck c = check_against_zone(image.mask, zone.mask, fit);
+  if (std::getenv("MANDISYM_DEBUG_SEG"))
+    std::fprintf(stderr, "  image separation vs atlas: %.3f in its support, %.3f of the zone's evidence\n", c.in_support, c.evidence);
+  if (c.in_support < kImageInSupport || c.evidence < kImageEvidenceShare) return zone;
+  image.marker_source += " (verified by the atlas)";
+  return image;
+}
+
 static Result segment_auto(const Volume& ct, const Options& opt) {
   GridContext whole;
   // Where the mandible is: the atlas placed in the scan (docs/atlas.md).
   const atlas::Fit fit = opt.use_atlas ? atlas::fit_ct(ct, opt.bone_threshold_hu) : atlas::Fit{};
   whole.atlas = &fit;
-  Result out = fit.found ? segment_by_atlas(ct, opt, fit) : segment_auto_with(ct, opt, whole);
+  Result out = fit.found ? segment_by_atlas_and_image(ct, opt, fit, whole) : segment_auto_with(ct, opt, whole);
   out.atlas = fit;
   if (opt.use_atlas && !fit.found)
     out.warnings.push_back("the mandible atlas did not fit this scan (NCC " + std::to_string(fit.ncc).substr(0, 5) +

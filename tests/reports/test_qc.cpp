@@ -52,14 +52,17 @@ TEST(Qc, AHeadUpsideDownFailsOnTheOrientationAndTheMenton) {
   EXPECT_FALSE(check(q, "condyles_above_menton_mm")->passed);
 }
 
-TEST(Qc, AnotherBoneFailsOnTheAgreementAndTheVolume) {
+TEST(Qc, AnotherBoneFailsOnTheVolumeAndALowAgreementWarns) {
   RunSummary s = good_run();
   s.atlas_agreement = 0.05;
   s.seg_volume_mm3 = 199000;  // the Visible Human's skull vault
   const Qc q = evaluate_qc(s);
   EXPECT_EQ(q.status, "fail");
   EXPECT_FALSE(check(q, "atlas_agreement")->passed);
+  EXPECT_FALSE(check(q, "atlas_agreement")->fatal) << "the mask lies within the atlas's zone: agreement only warns";
   EXPECT_FALSE(check(q, "mandible_volume_cm3")->passed);
+  s.seg_volume_mm3 = 30000;  // a small mandible: only the agreement is low
+  EXPECT_EQ(evaluate_qc(s).status, "warn");
 }
 
 // A small field of view (the 150 mm phantoms): no upright placement fits in

@@ -403,9 +403,12 @@ TEST(AutoSegmentation, ThickSlicesAreSegmentedOrFlagged) {
   EXPECT_TRUE(d >= 0.75 || flagged) << "Dice " << d << " without a warning";
 }
 
-// 3 mm slabs, teeth 3 mm apart: separated. The surface stays at 250 HU: at
-// the half-maximum the slab-averaged cortex no longer shut the interior,
-// which drained (Dice 0.68).
+// 3 mm slabs, teeth 3 mm apart. Scans coarser than 2 mm are segmented by the
+// atlas's zone alone (docs/segmentation.md): on 90 real OpenKBP scans it beats
+// the image separation (mean Dice 0.864 vs 0.827 where both gave a mask), but
+// on this phantom, whose anatomy is not a human mean, it takes some maxillary
+// bone: 0.778 (0.85+ with the image separation). Held so that it cannot get
+// worse. The surface stays at 250 HU (no half-maximum on slabs).
 TEST(AutoSegmentation, ThickSlabsKeepTheInterior) {
   phantom::PhantomParams p;
   p.spacing = {1, 1, 1};
@@ -414,7 +417,7 @@ TEST(AutoSegmentation, ThickSlabsKeepTheInterior) {
   const auto r = segmentation::segment_mandible(s.ct);
   const double d = ms::testing::dice(r.mask, s.truth);
   std::printf("1 x 1 x 3 mm slabs, gap 3 mm: Dice %.4f\n", d);
-  EXPECT_GE(d, 0.85);
+  EXPECT_GE(d, 0.75);
   EXPECT_EQ(r.surface_level_hu, 0.0);
 }
 
@@ -675,9 +678,9 @@ TEST(AutoSegmentation, PaddedScanEndsWhereItsPaddingBegins) {
 }
 
 // Real low-resolution scans (4.6 x 4.6 x 2 mm) against clinical contours. The
-// issue's target is Dice >= 0.8 per case; measured 0.822 / 0.872 / 0.873
-// (docs/segmentation.md), and every case must be separated without a warning
-// that it was not.
+// issue's target is Dice >= 0.8 per case; measured with the atlas's zone
+// 0.851 / 0.894 / 0.836 (docs/segmentation.md), every case identified by the
+// atlas without a warning that it was not separated.
 TEST(AutoSegmentation, OpenKbpAgreesWithClinicalContours) {
   const std::string root = std::string(MANDISYM_SHARED_DATA) + "/openkbp";
   if (!std::filesystem::exists(root)) GTEST_SKIP() << "shared data not present";
@@ -691,23 +694,17 @@ TEST(AutoSegmentation, OpenKbpAgreesWithClinicalContours) {
     std::printf("%s: Dice %.3f, %.1f cm3 (contour %.1f cm3)\n", pt, d, r.volume_mm3 / 1000,
                 c.mandible.count() * c.ct.geom.voxel_volume_mm3() / 1000);
     sum += d;
-    // With the atlas pt_245 scores 0.878 and pt_246 0.886, but pt_243 0.677 (0.822 before it,
-    // CHANGELOG.md): the core depth chosen by atlas evidence keeps less of its rami. pt_243 is
-    // also the case whose mask changes with the slice storage order (0.822 / 0.653): a known
-    // regression, held here so that it cannot get worse (docs/atlas.md, Limits).
-    EXPECT_GE(d, std::string(pt) == "pt_243" ? 0.65 : 0.8) << pt;
-    EXPECT_GT(r.separation_radius_mm, 0.0) << pt;
+    EXPECT_GE(d, 0.8) << pt;
+    EXPECT_EQ(r.marker_source, "atlas") << pt;
     for (const auto& w : r.warnings) EXPECT_EQ(w.find("not separated"), std::string::npos) << pt << ": " << w;
   }
-  EXPECT_GE(sum / 3, 0.8);
+  EXPECT_GE(sum / 3, 0.84);
 }
 
 // The Visible Human female head (1 mm, real, never tuned on) against its
 // reference mask (scripts/reference-vhf, docs/reference-vhf.md). Before the
-// atlas the skull vault was taken (199 cm3, Dice 0). Now the mandible is
-// taken, everything taken is mandible (precision 1.00), but its thin cortex
-// around fatty marrow leaves no separable core and only the atlas region
-// (p >= 0.5) comes: Dice 0.59, below the 0.93 (docs/atlas.md).
+// atlas the skull vault was taken (199 cm3, Dice 0); with the atlas's zone
+// Dice 0.972, precision 0.99 (the target: 0.93).
 TEST(AutoSegmentation, VisibleHumanFemaleIsTheMandibleNotTheVault) {
   const std::string ct_path = std::string(MANDISYM_SHARED_DATA) + "/visible-human-female/ct.nii.gz";
   const std::string ref_path = std::string(MANDISYM_SOURCE_DIR) + "/tests/data/visible-human-female/reference_mask.nii.gz";
@@ -725,5 +722,5 @@ TEST(AutoSegmentation, VisibleHumanFemaleIsTheMandibleNotTheVault) {
   RecordProperty("dice_vhf", std::to_string(d));
   EXPECT_TRUE(r.atlas.found);
   EXPECT_GE(precision, 0.95);  // the vault gave 0
-  EXPECT_GE(d, 0.55);
+  EXPECT_GE(d, 0.93);
 }
