@@ -171,6 +171,41 @@ Vec3 refine_extreme(const std::vector<Vec3>& V, int top, const Vec3& ex, const V
   return o + x * ex + y * ey + (sign * z) * ez;
 }
 
+// Condylar and coronoid processes: their tips lie ~30-35 mm apart
+// antero-posteriorly (sigmoid notch width) and within ~15 mm in height in
+// adults; the bounds leave room for children and for pose.
+constexpr double kProcessSeparationMm = 10.0;
+constexpr double kProcessHeightMm = 30.0;
+
+// The chord of a hull's run of edges facing posterior (posterior = true) or
+// inferior, classified as in detect(): its length and outward normal (a
+// counter-clockwise hull's edges turn monotonically, so the run is one arc).
+struct BorderChord {
+  double len = 0;
+  P2 out{0, 0};
+};
+
+BorderChord border_chord(const std::vector<P2>& hl, bool posterior, double cone) {
+  const std::size_t m = hl.size();
+  auto faces = [&](std::size_t i) {
+    const P2 &p = hl[i], &q = hl[(i + 1) % m];
+    const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
+    if (len < 1e-9) return false;
+    const P2 out{dh / len, -da / len};
+    return posterior ? (out.a > cone && out.a >= -out.h) : (-out.h > cone && -out.h > out.a);
+  };
+  BorderChord best;
+  for (std::size_t start = 0; start < m; ++start) {
+    if (!faces(start) || faces((start + m - 1) % m)) continue;  // the first edge of a run
+    std::size_t end = start;
+    while (faces((end + 1) % m) && (end + 1) % m != start) end = (end + 1) % m;
+    const P2 &p = hl[start], &q = hl[(end + 1) % m];
+    const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
+    if (len > best.len) best = {len, P2{dh / len, -da / len}};
+  }
+  return best;
+}
+
 }  // namespace
 
 Plane mandible_plane(const Mesh& mesh) {
@@ -265,17 +300,22 @@ Result detect(const Mesh& mesh, const Options& opt) {
       if (on_side(static_cast<std::size_t>(e))) top.push_back(e);
     std::sort(top.begin(), top.end(), [&](int a, int b) { return H[static_cast<std::size_t>(a)] > H[static_cast<std::size_t>(b)]; });
     int co = -1, cr = -1;
-    if (top.size() >= 2) {
-      const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[1]);
-      // Two processes: distinct antero-posteriorly, at a similar height.
-      if (std::abs(A[p] - A[q]) > 10.0 && std::abs(H[p] - H[q]) < 30.0) {
-        co = A[p] > A[q] ? top[0] : top[1];
-        cr = A[p] > A[q] ? top[1] : top[0];
-      } else {
-        co = top[0];
-      }
-    } else if (top.size() == 1) {
+    if (!top.empty()) {
+      // Two processes: distinct antero-posteriorly (> kProcessSeparationMm),
+      // at a similar height (< kProcessHeightMm apart). The highest extremity
+      // and the highest other one that forms such a pair with it; the
+      // posterior of the two is the condyle. (Only the second highest was
+      // tried before: where the coronoid is thin at 4 mm voxels a molar
+      // cusp ranked second and the pair failed.)
       co = top[0];
+      for (std::size_t k = 1; k < top.size(); ++k) {
+        const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[k]);
+        if (std::abs(A[p] - A[q]) > kProcessSeparationMm && std::abs(H[p] - H[q]) < kProcessHeightMm) {
+          co = A[p] > A[q] ? top[0] : top[k];
+          cr = A[p] > A[q] ? top[k] : top[0];
+          break;
+        }
+      }
     }
     if (co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, highest_near(co), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, highest_near(cr), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
@@ -329,6 +369,16 @@ Result detect(const Mesh& mesh, const Options& opt) {
     for (const P2& q : gs.pts) h_lo = std::min(h_lo, q.h), h_hi = std::max(h_hi, q.h);
     const double min_tangent = gs.pts.empty() ? kInf : std::max(5.0, 0.2 * (h_hi - h_lo));
     gs.ok = best_post > min_tangent && best_inf > min_tangent;
+    if (!gs.ok) {
+      // A convex (rounded) ramus or lower border has no single long hull
+      // edge: its tangent is then the chord of its run of hull edges, from
+      // the border's first to its last support point.
+      const BorderChord cp = border_chord(hl, true, cone), ci = border_chord(hl, false, cone);
+      if (cp.len > min_tangent && ci.len > min_tangent) {
+        gs.n_post = cp.out, gs.n_inf = ci.out;
+        gs.ok = true;
+      }
+    }
   }
 
   // Gonion, second pass: the extreme point of each side along the bisector
