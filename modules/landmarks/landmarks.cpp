@@ -177,33 +177,98 @@ Vec3 refine_extreme(const std::vector<Vec3>& V, int top, const Vec3& ex, const V
 constexpr double kProcessSeparationMm = 10.0;
 constexpr double kProcessHeightMm = 30.0;
 
-// The chord of a hull's run of edges facing posterior (posterior = true) or
-// inferior, classified as in detect(): its length and outward normal (a
-// counter-clockwise hull's edges turn monotonically, so the run is one arc).
-struct BorderChord {
-  double len = 0;
-  P2 out{0, 0};
+// The posterior and inferior borders as two chords (the cephalometric
+// tangents), where no single hull edge is long enough (a rounded angle, a
+// convex ramus, or a head frame tilted so that part of the lower border faces
+// posterior): the hull's arc of edges facing posterior or inferior (the cones
+// of detect()) is split where two straight segments fit its vertices best
+// (least squared distance), each segment at least min_len long. The chords'
+// outward normals; ok = false when no split qualifies.
+struct BorderPair {
+  bool ok = false;
+  P2 n_post{0, 0}, n_inf{0, 0};
 };
 
-BorderChord border_chord(const std::vector<P2>& hl, bool posterior, double cone) {
+BorderPair border_chords(const std::vector<P2>& hl, double cone, double min_len) {
   const std::size_t m = hl.size();
-  auto faces = [&](std::size_t i) {
-    const P2 &p = hl[i], &q = hl[(i + 1) % m];
+  BorderPair out;
+  if (m < 3) return out;
+  auto normal = [&](const P2& p, const P2& q, P2* n) {
     const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
     if (len < 1e-9) return false;
-    const P2 out{dh / len, -da / len};
-    return posterior ? (out.a > cone && out.a >= -out.h) : (-out.h > cone && -out.h > out.a);
+    *n = {dh / len, -da / len};
+    return true;
   };
-  BorderChord best;
+  auto faces = [&](std::size_t i) {
+    P2 n;
+    if (!normal(hl[i], hl[(i + 1) % m], &n)) return false;
+    return (n.a > cone && n.a >= -n.h) || (-n.h > cone && -n.h > n.a);
+  };
+  // The arc: the longest run of facing edges (one arc on a convex hull).
+  std::vector<P2> arc;
   for (std::size_t start = 0; start < m; ++start) {
-    if (!faces(start) || faces((start + m - 1) % m)) continue;  // the first edge of a run
-    std::size_t end = start;
-    while (faces((end + 1) % m) && (end + 1) % m != start) end = (end + 1) % m;
-    const P2 &p = hl[start], &q = hl[(end + 1) % m];
-    const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
-    if (len > best.len) best = {len, P2{dh / len, -da / len}};
+    if (!faces(start) || faces((start + m - 1) % m)) continue;
+    std::vector<P2> run{hl[start]};
+    for (std::size_t e = start; faces(e) && run.size() <= m; e = (e + 1) % m) run.push_back(hl[(e + 1) % m]);
+    if (run.size() > arc.size()) arc = std::move(run);
   }
-  return best;
+  if (arc.size() < 3) return out;
+  auto line_error = [&](std::size_t a, std::size_t b) {
+    P2 n;
+    if (!normal(arc[a], arc[b], &n)) return kInf;
+    double e = 0;
+    for (std::size_t k = a; k <= b; ++k) {
+      const double d = (arc[k].a - arc[a].a) * n.a + (arc[k].h - arc[a].h) * n.h;
+      e += d * d;
+    }
+    return e;
+  };
+  double best = kInf;
+  for (std::size_t k = 1; k + 1 < arc.size(); ++k) {
+    if (std::hypot(arc[k].a - arc[0].a, arc[k].h - arc[0].h) < min_len) continue;
+    if (std::hypot(arc.back().a - arc[k].a, arc.back().h - arc[k].h) < min_len) continue;
+    const double e = line_error(0, k) + line_error(k, arc.size() - 1);
+    if (e >= best) continue;
+    P2 n1, n2;
+    if (!normal(arc[0], arc[k], &n1) || !normal(arc[k], arc.back(), &n2)) continue;
+    best = e;
+    // The more posterior-facing chord is the ramus's.
+    out.n_post = n1.a > n2.a ? n1 : n2;
+    out.n_inf = n1.a > n2.a ? n2 : n1;
+    out.ok = true;
+  }
+  return out;
+}
+
+// B point's height on the mid-sagittal profile (docs/landmarks.md): the
+// profile is the most anterior extent of the midline band in 1 mm height bins
+// from menton up to kProfileMm; B point is the bin lying deepest below the
+// profile's upper (anterior) envelope, when at least kBPointDepthMm deep.
+// Returns +inf without such a concavity.
+constexpr double kProfileMm = 35.0;     // menton to above the alveolar crest of the lower incisors
+constexpr double kBPointDepthMm = 1.0;  // shallower: no labial concavity to speak of
+
+double b_point_height(const std::vector<int>& band, const std::vector<double>& A, const std::vector<double>& H, double hme) {
+  const int nb = static_cast<int>(kProfileMm);
+  std::vector<double> front(nb, -kInf);  // most anterior extent (-A) per bin
+  for (int v : band) {
+    const double h = H[static_cast<std::size_t>(v)] - hme;
+    if (h < 0 || h >= kProfileMm) continue;
+    double& f = front[static_cast<std::size_t>(h)];
+    f = std::max(f, -A[static_cast<std::size_t>(v)]);
+  }
+  double deepest = 0;
+  int at = -1;
+  for (int b = 1; b + 1 < nb; ++b) {
+    if (!std::isfinite(front[b])) continue;
+    double envelope = -kInf;  // upper envelope at b: chords between bins on either side
+    for (int i = 0; i < b; ++i)
+      for (int j = b + 1; j < nb; ++j)
+        if (std::isfinite(front[i]) && std::isfinite(front[j]))
+          envelope = std::max(envelope, front[i] + (front[j] - front[i]) * (b - i) / static_cast<double>(j - i));
+    if (envelope - front[b] > deepest) deepest = envelope - front[b], at = b;
+  }
+  return deepest >= kBPointDepthMm ? hme + at + 0.5 : kInf;
 }
 
 }  // namespace
@@ -371,13 +436,10 @@ Result detect(const Mesh& mesh, const Options& opt) {
     gs.ok = best_post > min_tangent && best_inf > min_tangent;
     if (!gs.ok) {
       // A convex (rounded) ramus or lower border has no single long hull
-      // edge: its tangent is then the chord of its run of hull edges, from
-      // the border's first to its last support point.
-      const BorderChord cp = border_chord(hl, true, cone), ci = border_chord(hl, false, cone);
-      if (cp.len > min_tangent && ci.len > min_tangent) {
-        gs.n_post = cp.out, gs.n_inf = ci.out;
-        gs.ok = true;
-      }
+      // edge: the two borders are then the best two-chord fit of the hull's
+      // posterior-inferior arc (border_chords).
+      const BorderPair bp = border_chords(hl, cone, min_tangent);
+      if (bp.ok) gs.n_post = bp.n_post, gs.n_inf = bp.n_inf, gs.ok = true;
     }
   }
 
@@ -443,9 +505,14 @@ Result detect(const Mesh& mesh, const Options& opt) {
       c = (1.0 / cnt) * c;
       r.landmarks.set("Me", c + (hmin - dot(c - r.plane.point, e_si)) * e_si);
       const double hme = H[static_cast<std::size_t>(me)];
-      std::vector<int> chin;  // below the alveolar process and the incisors
+      // The chin lies below the alveolar process and the incisors: within
+      // 18 mm of menton, and below B point (the deepest point of the labial
+      // concavity) when the profile has one: in a head extended in the
+      // scanner the alveolar process otherwise comes further forward.
+      const double top = std::min(hme + 18.0, b_point_height(band, A, H, hme));
+      std::vector<int> chin;
       for (int v : band)
-        if (H[static_cast<std::size_t>(v)] < hme + 18.0) chin.push_back(v);
+        if (H[static_cast<std::size_t>(v)] < top) chin.push_back(v);
       const int pog = plateau(V, chin, [&](std::size_t v) { return -A[v]; }, tol);
       if (pog >= 0) r.landmarks.set("Pog", refine_extreme(V, pog, e_ml, e_si, e_ap, -1.0, opt.apex_radius_mm));
     }
