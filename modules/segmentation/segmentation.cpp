@@ -1670,55 +1670,76 @@ static double atlas_agreement(const Mask& m, const atlas::Fit& fit) {
   return n > 0 ? 2 * in * v / (n * v + prior.mass_mm3()) : 0.0;
 }
 
+// Atlas evidence of a mask: the sum of the placed atlas's mandible
+// probability over its voxels times their volume (mm3).
+static double atlas_evidence_mm3(const Mask& m, const atlas::MandiblePrior& prior) {
+  const std::vector<float> p = prior_at_bone(prior, m.data.data(), m.geom);
+  double e = 0;
+  for (float v : p) e += v;
+  return e * m.geom.voxel_volume_mm3();
+}
+
 // How an image-separated mask stands against the placed atlas: the fraction
 // of its voxels within the training mandibles' support, and its share of the
-// zone mask's atlas evidence (sum of the mandible probability; same grid).
+// zone mask's atlas evidence (zone_mm3, atlas_evidence_mm3 of the zone mask).
 struct ZoneCheck {
   double in_support = 0;  // fraction of the image mask where p >= kAtlasSupportP
-  double evidence = 0;    // its sum of p over the zone mask's
+  double evidence = 0;    // its atlas evidence over the zone mask's
 };
 
-static ZoneCheck check_against_zone(const Mask& image, const Mask& zone, const atlas::Fit& fit) {
-  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
-  const std::vector<float> pi = prior_at_bone(prior, image.data.data(), image.geom);
-  const std::vector<float> pz = prior_at_bone(prior, zone.data.data(), zone.geom);
-  double n = 0, ei = 0, ez = 0, supp = 0;
+static ZoneCheck check_against_zone(const Mask& image, double zone_mm3, const atlas::MandiblePrior& prior) {
+  const std::vector<float> p = prior_at_bone(prior, image.data.data(), image.geom);
+  double n = 0, e = 0, supp = 0;
   for (std::size_t i = 0; i < image.data.size(); ++i) {
     n += image.data[i];
-    supp += image.data[i] && pi[i] >= kAtlasSupportP;
-    ei += pi[i];
-    ez += pz[i];
+    supp += image.data[i] && p[i] >= kAtlasSupportP;
+    e += p[i];
   }
-  return {n > 0 ? supp / n : 0.0, ez > 0 ? ei / ez : 0.0};
+  e *= image.geom.voxel_volume_mm3();
+  return {n > 0 ? supp / n : 0.0, zone_mm3 > 0 ? e / zone_mm3 : 0.0};
 }
 
 // Identification by the atlas, separation by the image where it resolves
-// the contacts (docs/segmentation.md, "Atlas zone and image separation"): on
-// scans up to max_working_spacing_mm the core/watershed separation runs
-// too, and its mask is taken when it lies within the training mandibles'
-// support (kImageInSupport) and holds most of the zone mask's atlas evidence
+// the contacts (docs/segmentation.md, "the atlas's zone"): on scans up to
+// max_working_spacing_mm the core/watershed separation runs first, and its
+// mask is taken when it lies within the training mandibles' support
+// (kImageInSupport) and holds most of the zone mask's atlas evidence
 // (kImageEvidenceShare): it then draws the borders the image shows (teeth
 // in occlusion, a resolved joint space) where the zone follows the atlas.
+// The zone's evidence for that check is measured on a ~1 mm bin-averaged
+// grid (kZoneCheckSpacingMm); the zone mask at full resolution is made only
+// when it is the answer.
 constexpr double kImageInSupport = 0.97;
 constexpr double kImageEvidenceShare = 0.6;
+constexpr double kZoneCheckSpacingMm = 1.0;
 
 static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, const atlas::Fit& fit, const GridContext& whole) {
-  Result zone = segment_by_atlas(ct, opt, fit);
   const Geometry& g = ct.geom;
-  if (std::max({g.spacing[0], g.spacing[1], g.spacing[2]}) > opt.max_working_spacing_mm + 1e-6) return zone;
+  if (std::max({g.spacing[0], g.spacing[1], g.spacing[2]}) > opt.max_working_spacing_mm + 1e-6) return segment_by_atlas(ct, opt, fit);
   Result image;
   try {
     image = segment_auto_with(ct, opt, whole);
   } catch (const Error&) {
-    return zone;
+    return segment_by_atlas(ct, opt, fit);
   }
-  if (image.separation_radius_mm <= 0) return zone;
-  const ZoneCheck c = check_against_zone(image.mask, zone.mask, fit);
+  if (image.separation_radius_mm <= 0) return segment_by_atlas(ct, opt, fit);
+  std::array<unsigned, 3> f{1, 1, 1};
+  for (int a = 0; a < 3; ++a) f[a] = std::max(1u, static_cast<unsigned>(std::floor(kZoneCheckSpacingMm / g.spacing[a] + 1e-6)));
+  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
+  double zone_mm3 = 0;
+  try {
+    zone_mm3 = atlas_evidence_mm3(segment_by_atlas(f[0] * f[1] * f[2] > 1 ? bin_average(ct, f) : ct, opt, fit).mask, prior);
+  } catch (const Error&) {
+    zone_mm3 = 0;  // no zone: nothing to measure the image's mask against
+  }
+  const ZoneCheck c = check_against_zone(image.mask, zone_mm3, prior);
   if (std::getenv("MANDISYM_DEBUG_SEG"))
     std::fprintf(stderr, "  image separation vs atlas: %.3f in its support, %.3f of the zone's evidence\n", c.in_support, c.evidence);
-  if (c.in_support < kImageInSupport || c.evidence < kImageEvidenceShare) return zone;
-  image.marker_source += " (verified by the atlas)";
-  return image;
+  if (zone_mm3 > 0 && c.in_support >= kImageInSupport && c.evidence >= kImageEvidenceShare) {
+    image.marker_source += " (verified by the atlas)";
+    return image;
+  }
+  return segment_by_atlas(ct, opt, fit);
 }
 
 static Result segment_auto(const Volume& ct, const Options& opt) {
