@@ -191,45 +191,26 @@ Field fraction_field(const Volume& ct, double spacing, double level) {
     const Vec3 p = g.index_to_lps((c & 1) ? g.size[0] - 0.5 : -0.5, (c & 2) ? g.size[1] - 0.5 : -0.5, (c & 4) ? g.size[2] - 0.5 : -0.5);
     for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], p[a]), hi[a] = std::max(hi[a], p[a]);
   }
-  // The grid is centred on the scan's box, with a multiple of 4 nodes per
-  // axis (downsample() takes blocks of 4): a scan mirrored or stored in the
-  // opposite order about its centre then gives the mirrored field, node for
-  // node, and the fit the mirrored pose (a grid anchored at multiples of
-  // the spacing put a scan and its mirror on different samples, and the
-  // search into different optima: pose 0.75 mm and 2 degrees apart).
   Field f;
   f.grid.spacing = spacing;
   for (int a = 0; a < 3; ++a) {
-    const double c = 0.5 * (lo[a] + hi[a]);
-    f.grid.n[a] = 4 * static_cast<int>(std::ceil(((hi[a] - lo[a]) / spacing + 1.0) / 4.0));
-    f.grid.origin[a] = c - 0.5 * (f.grid.n[a] - 1) * spacing;
+    f.grid.origin[a] = std::floor(lo[a] / spacing) * spacing;
+    f.grid.n[a] = static_cast<int>(std::ceil((hi[a] - f.grid.origin[a]) / spacing)) + 1;
   }
   f.v.assign(f.grid.count(), kNaN);
   const double max_sp = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   if (max_sp <= 0.5 * spacing) {
-    // Scatter scan voxels (sampled about every millimetre, on index sets
-    // symmetric about each axis's centre) into grid voxels.
-    std::array<std::vector<std::size_t>, 3> samples;
-    for (int a = 0; a < 3; ++a) {
-      const double step = std::max(1.0, std::floor(1.0 / g.spacing[a] + 1e-6));
-      const double c = 0.5 * (static_cast<double>(g.size[a]) - 1.0);
-      std::vector<std::size_t>& s = samples[a];
-      for (double x = c; x <= static_cast<double>(g.size[a]) - 1.0 + 1e-9; x += step) {
-        const auto i = static_cast<std::size_t>(std::floor(x + 1e-9));
-        s.push_back(i);
-        s.push_back(g.size[a] - 1 - i);
-      }
-      std::sort(s.begin(), s.end());
-      s.erase(std::unique(s.begin(), s.end()), s.end());
-    }
+    // Scatter scan voxels (sampled about every millimetre) into grid voxels.
+    std::array<std::size_t, 3> step{};
+    for (int a = 0; a < 3; ++a) step[a] = std::max<std::size_t>(1, static_cast<std::size_t>(std::floor(1.0 / g.spacing[a] + 1e-6)));
     std::vector<std::uint32_t> all(f.grid.count(), 0), bone(f.grid.count(), 0);
     const Vec3 o = g.index_to_lps(0, 0, 0);
     Vec3 di = g.index_to_lps(1, 0, 0) - o, dj = g.index_to_lps(0, 1, 0) - o, dk = g.index_to_lps(0, 0, 1) - o;
-    for (std::size_t k : samples[2])
-      for (std::size_t j : samples[1]) {
+    for (std::size_t k = 0; k < g.size[2]; k += step[2])
+      for (std::size_t j = 0; j < g.size[1]; j += step[1]) {
         Vec3 p = o + static_cast<double>(j) * dj + static_cast<double>(k) * dk;
         const float* row = ct.hu.data() + g.linear(0, j, k);
-        for (std::size_t i : samples[0]) {
+        for (std::size_t i = 0; i < g.size[0]; i += step[0]) {
           const Vec3 q = p + static_cast<double>(i) * di;
           const int I = static_cast<int>(std::lround((q[0] - f.grid.origin[0]) / spacing));
           const int J = static_cast<int>(std::lround((q[1] - f.grid.origin[1]) / spacing));
