@@ -96,7 +96,7 @@ std::map<std::string, std::string> parse(int argc, char** argv) {
 
 }  // namespace
 
-int place(const std::string& ct_path, double hu_offset, const std::string& out) {
+static int place(const std::string& ct_path, double hu_offset, const std::string& out) {
   io::ReadOptions ro;
   ro.hu_offset = hu_offset;
   io::LoadedScan s = io::read_scan(ct_path, ro);
@@ -113,38 +113,30 @@ int place(const std::string& ct_path, double hu_offset, const std::string& out) 
   return fit.found ? 0 : 3;
 }
 
-int main(int argc, char** argv) {
-  auto args = parse(argc, argv);
-  if (args.count("--place")) {
-    if (!args.count("--out")) {
-      std::fprintf(stderr, "usage: mandisym-atlas-build --place CT [--hu-offset H] --out PRIOR.nii.gz\n");
-      return 2;
-    }
-    try {
-      return place(args["--place"], args.count("--hu-offset") ? std::stod(args["--hu-offset"]) : 0.0, args["--out"]);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "mandisym-atlas-build: %s\n", e.what());
-      return 1;
-    }
+// The ids of a folds CSV (header id,fold) whose fold is listed in `use` (e.g. "1,2,3,4").
+static std::vector<std::string> fold_ids(const std::string& csv, const std::string& use) {
+  std::vector<std::string> ids;
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    const auto comma = line.find(',');
+    if (comma == std::string::npos) continue;
+    const std::string fold = line.substr(comma + 1);
+    if (("," + use + ",").find("," + fold + ",") != std::string::npos) ids.push_back(line.substr(0, comma));
   }
+  return ids;
+}
+
+// Builds the atlas from the training scans (the file's header, steps 1-4).
+static int build(std::map<std::string, std::string>& args) {
   if (!args.count("--data") || !args.count("--folds") || !args.count("--out")) {
     std::fprintf(stderr, "usage: mandisym-atlas-build --data DIR --folds CSV --use 1,2,3,4 --out FILE [--iterations N]\n");
     return 2;
   }
   const std::string use = args.count("--use") ? args["--use"] : "1,2,3,4";
   const int iterations = args.count("--iterations") ? std::stoi(args["--iterations"]) : 2;
-  std::vector<std::string> ids;
-  {
-    std::ifstream in(args["--folds"]);
-    std::string line;
-    std::getline(in, line);  // header
-    while (std::getline(in, line)) {
-      const auto comma = line.find(',');
-      if (comma == std::string::npos) continue;
-      const std::string fold = line.substr(comma + 1);
-      if (("," + use + ",").find("," + fold + ",") != std::string::npos) ids.push_back(line.substr(0, comma));
-    }
-  }
+  const std::vector<std::string> ids = fold_ids(args["--folds"], use);
   if (ids.empty()) {
     std::fprintf(stderr, "mandisym-atlas-build: no case of folds %s in %s\n", use.c_str(), args["--folds"].c_str());
     return 2;
@@ -221,4 +213,21 @@ int main(int argc, char** argv) {
   }
   std::fprintf(stderr, "wrote %s (%zu bytes): %s\n", args["--out"].c_str(), bytes.size(), atlas.source.c_str());
   return 0;
+}
+
+int main(int argc, char** argv) {
+  auto args = parse(argc, argv);
+  if (args.count("--place")) {
+    if (!args.count("--out")) {
+      std::fprintf(stderr, "usage: mandisym-atlas-build --place CT [--hu-offset H] --out PRIOR.nii.gz\n");
+      return 2;
+    }
+    try {
+      return place(args["--place"], args.count("--hu-offset") ? std::stod(args["--hu-offset"]) : 0.0, args["--out"]);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "mandisym-atlas-build: %s\n", e.what());
+      return 1;
+    }
+  }
+  return build(args);
 }

@@ -271,6 +271,219 @@ double b_point_height(const std::vector<int>& band, const std::vector<double>& A
   return deepest >= kBPointDepthMm ? hme + at + 0.5 : kInf;
 }
 
+// The mesh in the labelling frame (detect() step 1): per vertex the
+// medio-lateral (U, + left), antero-posterior (A, + posterior) and
+// supero-inferior (H, + superior) coordinates in the symmetry plane's frame.
+struct Frame {
+  const std::vector<Vec3>& V;
+  Vec3 origin;  // the symmetry plane's point: U = A = H = 0
+  Vec3 e_ml, e_ap, e_si;
+  std::vector<double> U, A, H;
+  double umax = 0;  // largest |U|
+};
+
+Frame frame_of(const std::vector<Vec3>& V, const Plane& plane, const Vec3& superior) {
+  Frame f{V, plane.point, {}, {}, {}, std::vector<double>(V.size()), std::vector<double>(V.size()), std::vector<double>(V.size()), 0.0};
+  reference::plane_frame(plane, f.e_ml, f.e_ap, f.e_si, superior);
+  for (std::size_t i = 0; i < V.size(); ++i) {
+    const Vec3 d = V[i] - plane.point;
+    f.U[i] = dot(d, f.e_ml);
+    f.A[i] = dot(d, f.e_ap);
+    f.H[i] = dot(d, f.e_si);
+    f.umax = std::max(f.umax, std::abs(f.U[i]));
+  }
+  return f;
+}
+
+// A side's vertices lie beyond this fraction of the largest |U| (the rami and
+// the posterior body, not the symphysis).
+constexpr double kSideFraction = 0.35;
+// Extreme points: vertices within this of the extreme value form its plateau (mm).
+constexpr double kPlateauTolMm = 0.3;
+
+// The two gonial tangents of one side (their outward normals in (A, H)).
+struct GonialSide {
+  std::vector<P2> pts;            // the side's vertices projected sagittally
+  std::vector<std::size_t> idx;   // their vertex indices
+  P2 n_post{0, 0}, n_inf{0, 0};
+  bool ok = false;
+};
+
+// Gonion, first pass (detect() step 3): the posterior ramus tangent and the
+// inferior border tangent of side s (+1 left, -1 right), from the convex hull
+// of the side's sagittal projection.
+GonialSide gonial_tangents(const Frame& f, double s) {
+  const auto& V = f.V;
+  const auto &U = f.U, &A = f.A, &H = f.H;
+  auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
+  // Gonion, first pass: the posterior ramus tangent and the inferior border
+  // tangent of this side (convex-hull edges of its sagittal projection).
+  GonialSide gs;
+  for (std::size_t v = 0; v < V.size(); ++v)
+    if (on_side(v)) {
+      gs.pts.push_back({A[v], H[v]});
+      gs.idx.push_back(v);
+    }
+  const std::vector<P2> hl = hull(gs.pts);
+  // Hull edges facing posterior / inferior (within 50 degrees); the two
+  // tangents are the pair of distinct edges, one of each, with the largest
+  // total length. (Taking the longest of each separately let one edge at
+  // ~45 degrees be both when the head was pitched 20 degrees: a concave
+  // posterior border's single long edge faces 24 degrees below posterior.)
+  struct Edge {
+    double len;
+    P2 out;
+  };
+  std::vector<Edge> post, inf;
+  const double cone = std::cos(50 * M_PI / 180);
+  for (std::size_t i = 0; i < hl.size(); ++i) {
+    const P2 &p = hl[i], &q = hl[(i + 1) % hl.size()];
+    const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
+    if (len < 1e-9) continue;
+    const P2 out{dh / len, -da / len};  // outward normal of a counter-clockwise hull
+    // Each edge faces one way, the nearer of posterior and inferior: a
+    // ramus tilted back 18 degrees (gonial angle opened 8) has a lower
+    // posterior border facing 40 degrees below posterior, and in both cones
+    // it paired with the upper posterior border, whose bisector put gonion
+    // half-way up the ramus.
+    if (out.a > cone && out.a >= -out.h) post.push_back({len, out});
+    if (-out.h > cone && -out.h > out.a) inf.push_back({len, out});
+  }
+  double best_post = 0, best_inf = 0;
+  for (const Edge& p : post)
+    for (const Edge& q : inf) {
+      // Distinct edges, the posterior one above (less inferior than) the inferior one.
+      if (-p.out.h >= -q.out.h || p.len + q.len <= best_post + best_inf) continue;
+      best_post = p.len, gs.n_post = p.out;
+      best_inf = q.len, gs.n_inf = q.out;
+    }
+  // Both tangents must be long enough to be borders, not facets: a fifth
+  // of the side's height (15 mm on an adult's ~73 mm; a fixed 15 mm lost
+  // both gonia of a child's mandible, scale 0.7: posterior tangent 14.4 mm
+  // of a 51 mm side), and never under 5 mm (no side, a sliver of one).
+  double h_lo = kInf, h_hi = -kInf;
+  for (const P2& q : gs.pts) h_lo = std::min(h_lo, q.h), h_hi = std::max(h_hi, q.h);
+  const double min_tangent = gs.pts.empty() ? kInf : std::max(5.0, 0.2 * (h_hi - h_lo));
+  gs.ok = best_post > min_tangent && best_inf > min_tangent;
+  if (!gs.ok) {
+    // A convex (rounded) ramus or lower border has no single long hull
+    // edge: the two borders are then the best two-chord fit of the hull's
+    // posterior-inferior arc (border_chords).
+    const BorderPair bp = border_chords(hl, cone, min_tangent);
+    if (bp.ok) gs.n_post = bp.n_post, gs.n_inf = bp.n_inf, gs.ok = true;
+  }
+  return gs;
+}
+
+// Gonion, second pass: the extreme point of each side along the bisector
+// of the two tangents' outward normals. The bisector direction is averaged
+// over both sides (in the plane frame they are mirror images), so a ramus
+// that is only taller does not rotate its own bisector and move gonion
+// along the angle: left and right gonion are measured the same way.
+void place_gonia(const Frame& f, const GonialSide (&gonial)[2], double apex_radius_mm, LandmarkSet& out) {
+  const auto& V = f.V;
+  const Vec3 &e_ml = f.e_ml, &e_ap = f.e_ap, &e_si = f.e_si;
+  P2 b{0, 0};
+  int used = 0;
+  for (const GonialSide& gs : gonial)
+    if (gs.ok) {
+      const double bl = std::hypot(gs.n_post.a + gs.n_inf.a, gs.n_post.h + gs.n_inf.h);
+      b.a += (gs.n_post.a + gs.n_inf.a) / bl;
+      b.h += (gs.n_post.h + gs.n_inf.h) / bl;
+      ++used;
+    }
+  const double bl = std::hypot(b.a, b.h);
+  for (int si = 0; si < 2 && used > 0 && bl > 1e-9; ++si) {
+    const GonialSide& gs = gonial[si];
+    if (!gs.ok) continue;
+    std::size_t go = gs.idx[0];
+    double bs = -kInf;
+    for (std::size_t k = 0; k < gs.idx.size(); ++k) {
+      const double sc = (gs.pts[k].a * b.a + gs.pts[k].h * b.h) / bl;
+      if (sc > bs) bs = sc, go = gs.idx[k];
+    }
+    const Vec3 bdir = normalized((b.a / bl) * e_ap + (b.h / bl) * e_si);
+    out.set(si == 0 ? "Go_L" : "Go_R",
+                    refine_extreme(V, static_cast<int>(go), e_ml, cross(bdir, e_ml), bdir, 1.0, apex_radius_mm));
+  }
+}
+
+// 4. Midline: menton = lowest point of the symphysis, pogonion = most
+//    anterior point of the chin. The symphysis is the front of the
+//    midline band (within 20 mm of its most anterior point), so that a
+//    pitched head does not move menton back along the flat lower border.
+void place_midline(const Frame& f, double apex_radius_mm, LandmarkSet& out) {
+  const auto& V = f.V;
+  const auto &U = f.U, &A = f.A, &H = f.H;
+  const double umax = f.umax;
+  const Vec3 &e_ml = f.e_ml, &e_ap = f.e_ap, &e_si = f.e_si;
+  std::vector<int> band;
+  double afront = kInf;
+  for (std::size_t v = 0; v < V.size(); ++v)
+    if (std::abs(U[v]) < 0.12 * umax && A[v] < 0) {
+      band.push_back(static_cast<int>(v));
+      afront = std::min(afront, A[v]);
+    }
+  std::vector<int> sym;
+  for (int v : band)
+    if (A[static_cast<std::size_t>(v)] < afront + 20.0) sym.push_back(v);
+  const int me = plateau(V, sym, [&](std::size_t v) { return -H[v]; }, kPlateauTolMm);
+  if (me >= 0) {
+    // The lower border is nearly flat antero-posteriorly: a quadratic apex
+    // there is ill-conditioned, and any one vertex of the flat bottom is
+    // where the triangulation happened to put it (the same scan mirrored
+    // moved it 0.9 mm). Menton is the centre of the bottom — the mean of the
+    // vertices within kPlateauTolMm of the lowest — at the lowest vertex's height.
+    Vec3 c{0, 0, 0};
+    double hmin = kInf;
+    int cnt = 0;
+    for (int v : sym) hmin = std::min(hmin, H[static_cast<std::size_t>(v)]);
+    for (int v : sym)
+      if (H[static_cast<std::size_t>(v)] <= hmin + kPlateauTolMm) c = c + V[static_cast<std::size_t>(v)], ++cnt;
+    c = (1.0 / cnt) * c;
+    out.set("Me", c + (hmin - dot(c - f.origin, e_si)) * e_si);
+    const double hme = H[static_cast<std::size_t>(me)];
+    // The chin lies below the alveolar process and the incisors: within
+    // 18 mm of menton, and below B point (the deepest point of the labial
+    // concavity) when the profile has one: in a head extended in the
+    // scanner the alveolar process otherwise comes further forward.
+    const double top = std::min(hme + 18.0, b_point_height(band, A, H, hme));
+    std::vector<int> chin;
+    for (int v : band)
+      if (H[static_cast<std::size_t>(v)] < top) chin.push_back(v);
+    const int pog = plateau(V, chin, [&](std::size_t v) { return -A[v]; }, kPlateauTolMm);
+    if (pog >= 0) out.set("Pog", refine_extreme(V, pog, e_ml, e_si, e_ap, -1.0, apex_radius_mm));
+  }
+}
+
+// 5. A landmark at the edge of a truncated scan is not the anatomical point,
+// nor one whose neighbourhood (the apex radius its extreme point is refined
+// over) reaches the scan's edge: the bone there is cut (a gonion 2 mm inside
+// a lateral cut was the middle of what was left of the angle, 2.7 mm off).
+void drop_landmarks_at_edge(const Mesh& mesh, const Geometry& scan_grid, double apex_radius_mm, LandmarkSet& landmarks,
+                            std::vector<std::string>& warnings) {
+  const Geometry& sg = scan_grid;
+  auto at_edge = [&](const Vec3& p) {
+    const Vec3 q = sg.lps_to_index(p);
+    bool edge = false;
+    for (int a = 0; a < 3; ++a) edge |= q[a] < 1.5 || q[a] > static_cast<double>(sg.size[a]) - 2.5;
+    return edge;
+  };
+  std::vector<Vec3> cut;  // mesh vertices on the scan's edge
+  for (const Vec3& v : mesh.vertices)
+    if (at_edge(v)) cut.push_back(v);
+  LandmarkSet kept;
+  for (const auto& [name, p] : landmarks.points) {
+    bool edge = at_edge(p);
+    for (std::size_t i = 0; i < cut.size() && !edge; ++i) edge = norm(cut[i] - p) <= apex_radius_mm;
+    if (edge)
+      warnings.push_back("landmarks: " + name + " lies at the edge of the scan (truncated): reported missing");
+    else
+      kept.set(name, p);
+  }
+  landmarks = kept;
+}
+
 }  // namespace
 
 Plane mandible_plane(const Mesh& mesh) {
@@ -322,17 +535,9 @@ Result detect(const Mesh& mesh, const Options& opt) {
   // 1. Frame: the mandible's own symmetry plane (yaw, roll) and the head's
   //    superior direction (pitch, when given).
   r.plane = opt.plane ? *opt.plane : mandible_plane(mesh);
-  Vec3 e_ml, e_ap, e_si;
-  reference::plane_frame(r.plane, e_ml, e_ap, e_si, opt.superior);
-  std::vector<double> U(n), A(n), H(n);
-  double umax = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 d = V[i] - r.plane.point;
-    U[i] = dot(d, e_ml);
-    A[i] = dot(d, e_ap);
-    H[i] = dot(d, e_si);
-    umax = std::max(umax, std::abs(U[i]));
-  }
+  const Frame f = frame_of(V, r.plane, opt.superior);
+  const Vec3 &e_ml = f.e_ml, &e_ap = f.e_ap, &e_si = f.e_si;
+  const auto &U = f.U, &A = f.A, &H = f.H;
 
   // 2. Geodesic extremities (METHOD.md §2).
   DebugLap lap("MANDISYM_DEBUG_LANDMARKS", "landmarks");
@@ -343,23 +548,16 @@ Result detect(const Mesh& mesh, const Options& opt) {
   lap("  extremities");
   for (int e : ext) r.extremities.push_back(V[static_cast<std::size_t>(e)]);
   std::vector<double> scratch(n, kInf);
-  const double tol = 0.3;  // mm: plateau tolerance for extreme points
   auto highest_near = [&](int seed) {
-    return plateau(V, ball(g, seed, opt.process_radius_mm, scratch), [&](std::size_t v) { return H[v]; }, tol);
+    return plateau(V, ball(g, seed, opt.process_radius_mm, scratch), [&](std::size_t v) { return H[v]; }, kPlateauTolMm);
   };
 
   // 3. Per side: the condylar and coronoid processes are the two highest
   //    extremities of the ramus, the condyle the posterior one.
-  struct GonialSide {
-    std::vector<P2> pts;
-    std::vector<std::size_t> idx;
-    P2 n_post{0, 0}, n_inf{0, 0};
-    bool ok = false;
-  };
   GonialSide gonial[2];  // [0] left, [1] right
   for (double s : {1.0, -1.0}) {
     const std::string suf = s > 0 ? "_L" : "_R";
-    auto on_side = [&](std::size_t v) { return s * U[v] > 0.35 * umax; };
+    auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
     std::vector<int> top;
     for (int e : ext)
       if (on_side(static_cast<std::size_t>(e))) top.push_back(e);
@@ -385,165 +583,18 @@ Result detect(const Mesh& mesh, const Options& opt) {
     if (co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, highest_near(co), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, highest_near(cr), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
 
-    // Gonion, first pass: the posterior ramus tangent and the inferior border
-    // tangent of this side (convex-hull edges of its sagittal projection).
-    GonialSide& gs = gonial[s > 0 ? 0 : 1];
-    for (std::size_t v = 0; v < n; ++v)
-      if (on_side(v)) {
-        gs.pts.push_back({A[v], H[v]});
-        gs.idx.push_back(v);
-      }
-    const std::vector<P2> hl = hull(gs.pts);
-    // Hull edges facing posterior / inferior (within 50 degrees); the two
-    // tangents are the pair of distinct edges, one of each, with the largest
-    // total length. (Taking the longest of each separately let one edge at
-    // ~45 degrees be both when the head was pitched 20 degrees: a concave
-    // posterior border's single long edge faces 24 degrees below posterior.)
-    struct Edge {
-      double len;
-      P2 out;
-    };
-    std::vector<Edge> post, inf;
-    const double cone = std::cos(50 * M_PI / 180);
-    for (std::size_t i = 0; i < hl.size(); ++i) {
-      const P2 &p = hl[i], &q = hl[(i + 1) % hl.size()];
-      const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
-      if (len < 1e-9) continue;
-      const P2 out{dh / len, -da / len};  // outward normal of a counter-clockwise hull
-      // Each edge faces one way, the nearer of posterior and inferior: a
-      // ramus tilted back 18 degrees (gonial angle opened 8) has a lower
-      // posterior border facing 40 degrees below posterior, and in both cones
-      // it paired with the upper posterior border, whose bisector put gonion
-      // half-way up the ramus.
-      if (out.a > cone && out.a >= -out.h) post.push_back({len, out});
-      if (-out.h > cone && -out.h > out.a) inf.push_back({len, out});
-    }
-    double best_post = 0, best_inf = 0;
-    for (const Edge& p : post)
-      for (const Edge& q : inf) {
-        // Distinct edges, the posterior one above (less inferior than) the inferior one.
-        if (-p.out.h >= -q.out.h || p.len + q.len <= best_post + best_inf) continue;
-        best_post = p.len, gs.n_post = p.out;
-        best_inf = q.len, gs.n_inf = q.out;
-      }
-    // Both tangents must be long enough to be borders, not facets: a fifth
-    // of the side's height (15 mm on an adult's ~73 mm; a fixed 15 mm lost
-    // both gonia of a child's mandible, scale 0.7: posterior tangent 14.4 mm
-    // of a 51 mm side), and never under 5 mm (no side, a sliver of one).
-    double h_lo = kInf, h_hi = -kInf;
-    for (const P2& q : gs.pts) h_lo = std::min(h_lo, q.h), h_hi = std::max(h_hi, q.h);
-    const double min_tangent = gs.pts.empty() ? kInf : std::max(5.0, 0.2 * (h_hi - h_lo));
-    gs.ok = best_post > min_tangent && best_inf > min_tangent;
-    if (!gs.ok) {
-      // A convex (rounded) ramus or lower border has no single long hull
-      // edge: the two borders are then the best two-chord fit of the hull's
-      // posterior-inferior arc (border_chords).
-      const BorderPair bp = border_chords(hl, cone, min_tangent);
-      if (bp.ok) gs.n_post = bp.n_post, gs.n_inf = bp.n_inf, gs.ok = true;
-    }
+    // Gonion, first pass (gonial_tangents).
+    gonial[s > 0 ? 0 : 1] = gonial_tangents(f, s);
   }
 
-  // Gonion, second pass: the extreme point of each side along the bisector
-  // of the two tangents' outward normals. The bisector direction is averaged
-  // over both sides (in the plane frame they are mirror images), so a ramus
-  // that is only taller does not rotate its own bisector and move gonion
-  // along the angle: left and right gonion are measured the same way.
-  {
-    P2 b{0, 0};
-    int used = 0;
-    for (const GonialSide& gs : gonial)
-      if (gs.ok) {
-        const double bl = std::hypot(gs.n_post.a + gs.n_inf.a, gs.n_post.h + gs.n_inf.h);
-        b.a += (gs.n_post.a + gs.n_inf.a) / bl;
-        b.h += (gs.n_post.h + gs.n_inf.h) / bl;
-        ++used;
-      }
-    const double bl = std::hypot(b.a, b.h);
-    for (int si = 0; si < 2 && used > 0 && bl > 1e-9; ++si) {
-      const GonialSide& gs = gonial[si];
-      if (!gs.ok) continue;
-      std::size_t go = gs.idx[0];
-      double bs = -kInf;
-      for (std::size_t k = 0; k < gs.idx.size(); ++k) {
-        const double sc = (gs.pts[k].a * b.a + gs.pts[k].h * b.h) / bl;
-        if (sc > bs) bs = sc, go = gs.idx[k];
-      }
-      const Vec3 bdir = normalized((b.a / bl) * e_ap + (b.h / bl) * e_si);
-      r.landmarks.set(si == 0 ? "Go_L" : "Go_R",
-                      refine_extreme(V, static_cast<int>(go), e_ml, cross(bdir, e_ml), bdir, 1.0, opt.apex_radius_mm));
-    }
-  }
+  // Gonion, second pass (place_gonia).
+  place_gonia(f, gonial, opt.apex_radius_mm, r.landmarks);
 
-  // 4. Midline: menton = lowest point of the symphysis, pogonion = most
-  //    anterior point of the chin. The symphysis is the front of the
-  //    midline band (within 20 mm of its most anterior point), so that a
-  //    pitched head does not move menton back along the flat lower border.
-  {
-    std::vector<int> band;
-    double afront = kInf;
-    for (std::size_t v = 0; v < n; ++v)
-      if (std::abs(U[v]) < 0.12 * umax && A[v] < 0) {
-        band.push_back(static_cast<int>(v));
-        afront = std::min(afront, A[v]);
-      }
-    std::vector<int> sym;
-    for (int v : band)
-      if (A[static_cast<std::size_t>(v)] < afront + 20.0) sym.push_back(v);
-    const int me = plateau(V, sym, [&](std::size_t v) { return -H[v]; }, tol);
-    if (me >= 0) {
-      // The lower border is nearly flat antero-posteriorly: a quadratic apex
-      // there is ill-conditioned, and any one vertex of the flat bottom is
-      // where the triangulation happened to put it (the same scan mirrored
-      // moved it 0.9 mm). Menton is the centre of the bottom — the mean of the
-      // vertices within tol of the lowest — at the lowest vertex's height.
-      Vec3 c{0, 0, 0};
-      double hmin = kInf;
-      int cnt = 0;
-      for (int v : sym) hmin = std::min(hmin, H[static_cast<std::size_t>(v)]);
-      for (int v : sym)
-        if (H[static_cast<std::size_t>(v)] <= hmin + tol) c = c + V[static_cast<std::size_t>(v)], ++cnt;
-      c = (1.0 / cnt) * c;
-      r.landmarks.set("Me", c + (hmin - dot(c - r.plane.point, e_si)) * e_si);
-      const double hme = H[static_cast<std::size_t>(me)];
-      // The chin lies below the alveolar process and the incisors: within
-      // 18 mm of menton, and below B point (the deepest point of the labial
-      // concavity) when the profile has one: in a head extended in the
-      // scanner the alveolar process otherwise comes further forward.
-      const double top = std::min(hme + 18.0, b_point_height(band, A, H, hme));
-      std::vector<int> chin;
-      for (int v : band)
-        if (H[static_cast<std::size_t>(v)] < top) chin.push_back(v);
-      const int pog = plateau(V, chin, [&](std::size_t v) { return -A[v]; }, tol);
-      if (pog >= 0) r.landmarks.set("Pog", refine_extreme(V, pog, e_ml, e_si, e_ap, -1.0, opt.apex_radius_mm));
-    }
-  }
+  // 4. Midline: menton and pogonion (place_midline).
+  place_midline(f, opt.apex_radius_mm, r.landmarks);
 
-  // 5. A landmark at the edge of a truncated scan is not the anatomical point,
-  // nor one whose neighbourhood (the apex radius its extreme point is refined
-  // over) reaches the scan's edge: the bone there is cut (a gonion 2 mm inside
-  // a lateral cut was the middle of what was left of the angle, 2.7 mm off).
-  if (opt.scan_grid) {
-    const Geometry& sg = *opt.scan_grid;
-    auto at_edge = [&](const Vec3& p) {
-      const Vec3 q = sg.lps_to_index(p);
-      bool edge = false;
-      for (int a = 0; a < 3; ++a) edge |= q[a] < 1.5 || q[a] > static_cast<double>(sg.size[a]) - 2.5;
-      return edge;
-    };
-    std::vector<Vec3> cut;  // mesh vertices on the scan's edge
-    for (const Vec3& v : mesh.vertices)
-      if (at_edge(v)) cut.push_back(v);
-    LandmarkSet kept;
-    for (const auto& [name, p] : r.landmarks.points) {
-      bool edge = at_edge(p);
-      for (std::size_t i = 0; i < cut.size() && !edge; ++i) edge = norm(cut[i] - p) <= opt.apex_radius_mm;
-      if (edge)
-        r.warnings.push_back("landmarks: " + name + " lies at the edge of the scan (truncated): reported missing");
-      else
-        kept.set(name, p);
-    }
-    r.landmarks = kept;
-  }
+  // 5. Landmarks at the edge of a truncated scan are missing (drop_landmarks_at_edge).
+  if (opt.scan_grid) drop_landmarks_at_edge(mesh, *opt.scan_grid, opt.apex_radius_mm, r.landmarks, r.warnings);
   for (const auto& name : landmark_names())
     if (!r.landmarks.has(name)) r.missing.push_back(name);
   return r;
