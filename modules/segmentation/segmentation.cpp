@@ -186,9 +186,6 @@ unsigned pick_mandible(const std::vector<Features>& f, double voxel_mm3, double 
 constexpr double kPriorBackground = 0.25;
 constexpr double kMinCorePrior = 0.3;
 constexpr double kMinCoreShare = 0.1;
-// Without a separable core, the bone where the atlas's probability is at
-// least this is taken (the atlas's median mandible surface).
-constexpr double kAtlasRegionP = 0.5;
 
 // Score of a core in cm3 of mandible evidence (above); -inf when it does not qualify.
 double atlas_merit(const Features& c, double voxel_mm3, double atlas_mm3) {
@@ -951,7 +948,9 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
 
   std::vector<std::uint8_t> crop_mask(cg.voxel_count(), 0);
   if (mand == 0) {
-    const auto* b_crop = bone->GetBufferPointer();
+    // With the atlas, a mandible without a core of its own is the atlas's
+    // zone's to take (segment_by_atlas_and_image), not a bone component's.
+    if (by_atlas) throw Error(ExitCode::NoMandible, "no mandible core separated by the image");
     r.warnings.push_back("mandible not separated from the other bones: no bone core has a mandible's size; "
                          "the result may include skull or spine");
     // Fall back to the widest, lowest bone component of the undivided mask.
@@ -969,26 +968,9 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     auto f2 = component_features(rl2->GetOutput(), n2, cg);
     const auto* lab = rl2->GetOutput()->GetBufferPointer();
     unsigned best = 0;
-    if (by_atlas) {  // the bone component with the most atlas evidence
-      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        if (lab[i]) f2[lab[i]].prior_sum += prior[i];
-      best = pick_by_atlas(f2, voxel_mm3, atlas_mm3, 0.0);
-      if (best == 0) {
-        // Fused to other bones and without a core of its own (a thin
-        // cortex around fatty marrow): the bone where the atlas places the
-        // mandible, said as such.
-        r.warnings.back() = "mandible not separated from the other bones by the image: the bone where the mandible atlas "
-                            "gives a probability of at least " + std::to_string(kAtlasRegionP).substr(0, 4) +
-                            " was taken; its borders with the skull base and maxilla follow the atlas, not the scan";
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < crop_mask.size(); ++i) n += crop_mask[i] = b_crop[i] && prior[i] >= kAtlasRegionP;
-        if (n == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone lies where the mandible atlas places the mandible");
-      }
-    } else {
-      for (unsigned l = 1; l <= n2; ++l)
-        if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
-      if (best == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone is at least 40 mm wide left-right");
-    }
+    for (unsigned l = 1; l <= n2; ++l)
+      if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
+    if (best == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone is at least 40 mm wide left-right");
     if (best)
       for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
   } else {
@@ -1655,21 +1637,6 @@ static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas
   return finalize(ct, opt, region, std::move(mask), std::move(r), /*cortex_resolved=*/false);
 }
 
-// Soft Dice of the mask with the atlas's mandible probability p:
-// 2 sum_mask(p) / (|mask| + sum(p)), volumes in mm3; sum(p) is the atlas's
-// integral times scale^3 (its part outside the scan counted too: a mandible
-// cut by the scan's edge agrees less).
-static double atlas_agreement(const Mask& m, const atlas::Fit& fit) {
-  if (!fit.found) return -1;
-  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
-  const std::vector<float> p = prior_at_bone(prior, m.data.data(), m.geom);
-  double in = 0;
-  for (float v : p) in += v;
-  const double v = m.geom.voxel_volume_mm3();
-  const double n = static_cast<double>(m.count());
-  return n > 0 ? 2 * in * v / (n * v + prior.mass_mm3()) : 0.0;
-}
-
 // Atlas evidence of a mask: the sum of the placed atlas's mandible
 // probability over its voxels times their volume (mm3).
 static double atlas_evidence_mm3(const Mask& m, const atlas::MandiblePrior& prior) {
@@ -1678,6 +1645,18 @@ static double atlas_evidence_mm3(const Mask& m, const atlas::MandiblePrior& prio
   for (float v : p) e += v;
   return e * m.geom.voxel_volume_mm3();
 }
+
+// Soft Dice of the mask with the atlas's mandible probability p:
+// 2 sum_mask(p) / (|mask| + sum(p)), volumes in mm3; sum(p) is the atlas's
+// integral times scale^3 (its part outside the scan counted too: a mandible
+// cut by the scan's edge agrees less).
+static double atlas_agreement(const Mask& m, const atlas::Fit& fit) {
+  if (!fit.found) return -1;
+  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
+  const double n_mm3 = static_cast<double>(m.count()) * m.geom.voxel_volume_mm3();
+  return n_mm3 > 0 ? 2 * atlas_evidence_mm3(m, prior) / (n_mm3 + prior.mass_mm3()) : 0.0;
+}
+
 
 // How an image-separated mask stands against the placed atlas: the fraction
 // of its voxels within the training mandibles' support, and its share of the
