@@ -171,3 +171,40 @@ TEST(Landmarks, LandmarksNearALateralCutAreMissing) {
 }
 
 }  // namespace
+
+// Head frame order (docs/landmarks.md): the palatal plane when it agrees with
+// the atlas's superior axis within 40 degrees; the atlas's axis when it does
+// not (a nasal floor found on the wrong structure); the scan's axes without
+// either. Checked against the phantom's known head frame.
+TEST(HeadFrame, PalatalPlaneUnlessTheAtlasAxisRejectsIt) {
+  ms::phantom::PhantomParams p;
+  p.spacing = {1, 1, 1};
+  p.fov_mm = {150, 140, 130};
+  p.pitch_deg = 10;
+  p.occlusal_gap_mm = 2;
+  p.noise_hu = 0;
+  const auto ph = ms::phantom::generate(p);
+  const auto surf = ms::surface::mesh_from_mask(ph.mandible);
+  auto angle = [](const Vec3& a, const Vec3& b) { return std::acos(std::min(1.0, ms::dot(a, b))) * 180 / M_PI; };
+  ms::landmarks::PalateOptions po;
+  ms::landmarks::PalatalPlane palate;
+  ms::landmarks::HeadFrame frame;
+  // The atlas agrees (its axis 10 degrees from the head's): the palatal plane is used.
+  const Vec3 near = ms::normalized(Vec3{ph.superior[0], ph.superior[1] + 0.18, ph.superior[2]});
+  po.atlas_superior = near;
+  ms::landmarks::detect_in_head_frame(ph.ct, surf.mesh, {}, po, &palate, &frame);
+  EXPECT_EQ(frame.source, "palatal");
+  EXPECT_LT(angle(frame.superior, ph.superior), 1.0);
+  // The atlas's axis 60 degrees away: the palatal line is rejected, the atlas's axis used.
+  const Vec3 far = ms::normalized(Vec3{ph.superior[0], ph.superior[1] + 1.73, ph.superior[2]});
+  po.atlas_superior = far;
+  ms::landmarks::detect_in_head_frame(ph.ct, surf.mesh, {}, po, &palate, &frame);
+  EXPECT_EQ(frame.source, "mandible");
+  EXPECT_FALSE(palate.found);
+  EXPECT_NE(palate.reason.find("degrees"), std::string::npos) << palate.reason;
+  EXPECT_LT(angle(frame.superior, far), 1e-6);
+  // Without the atlas: the palatal plane again.
+  po.atlas_superior.reset();
+  ms::landmarks::detect_in_head_frame(ph.ct, surf.mesh, {}, po, &palate, &frame);
+  EXPECT_EQ(frame.source, "palatal");
+}
