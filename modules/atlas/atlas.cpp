@@ -2,11 +2,14 @@
 
 #include <zlib.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <future>
 #include <limits>
 #include <stdexcept>
 
@@ -47,6 +50,23 @@ Rot rotation(const Pose& p) {
   Rot R;
   std::copy(out, out + 9, R.m);
   return R;
+}
+
+// Sets the pose's angles from a rotation matrix R = Rz(yaw) Rx(pitch) Ry(roll)
+// (row-major): its bottom row is (-cos p sin r, sin p, cos p cos r) and its
+// middle column (-sin y cos p, cos y cos p, sin p).
+void set_angles(Pose& p, const double R[9]) {
+  p.pitch = std::asin(std::clamp(R[7], -1.0, 1.0));
+  p.roll = std::atan2(-R[6], R[8]);
+  p.yaw = std::atan2(-R[1], R[4]);
+}
+
+Eigen::Quaterniond quaternion(const Pose& p) {
+  const Rot R = rotation(p);
+  Eigen::Matrix3d m;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) m(r, c) = R.m[3 * r + c];
+  return Eigen::Quaterniond(m);
 }
 
 // The pose as one affine map p = A a + t (A = scale R M).
@@ -183,8 +203,9 @@ Field downsample(const Field& f, int factor) {
   return o;
 }
 
-// Scan voxel sampling: bone (value >= level) fraction per grid voxel.
-Field fraction_field(const Volume& ct, double spacing, double level) {
+// Scan voxel sampling: bone (value >= level) fraction per grid voxel, of
+// the scan or, with `flip`, of its mirror (the array flipped, the geometry kept).
+Field fraction_field(const Volume& ct, double spacing, double level, const ScanMirror* flip = nullptr) {
   const Geometry& g = ct.geom;
   Vec3 lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30};
   for (int c = 0; c < 8; ++c) {
@@ -206,11 +227,14 @@ Field fraction_field(const Volume& ct, double spacing, double level) {
     std::vector<std::uint32_t> all(f.grid.count(), 0), bone(f.grid.count(), 0);
     const Vec3 o = g.index_to_lps(0, 0, 0);
     Vec3 di = g.index_to_lps(1, 0, 0) - o, dj = g.index_to_lps(0, 1, 0) - o, dk = g.index_to_lps(0, 0, 1) - o;
+    const int fa = flip ? flip->axis : -1;
     for (std::size_t k = 0; k < g.size[2]; k += step[2])
       for (std::size_t j = 0; j < g.size[1]; j += step[1]) {
         Vec3 p = o + static_cast<double>(j) * dj + static_cast<double>(k) * dk;
-        const float* row = ct.hu.data() + g.linear(0, j, k);
+        const std::size_t sj = fa == 1 ? g.size[1] - 1 - j : j, sk = fa == 2 ? g.size[2] - 1 - k : k;
+        const float* row = ct.hu.data() + g.linear(0, sj, sk);
         for (std::size_t i = 0; i < g.size[0]; i += step[0]) {
+          const std::size_t si = fa == 0 ? g.size[0] - 1 - i : i;
           const Vec3 q = p + static_cast<double>(i) * di;
           const int I = static_cast<int>(std::lround((q[0] - f.grid.origin[0]) / spacing));
           const int J = static_cast<int>(std::lround((q[1] - f.grid.origin[1]) / spacing));
@@ -218,7 +242,7 @@ Field fraction_field(const Volume& ct, double spacing, double level) {
           if (I < 0 || J < 0 || K < 0 || I >= f.grid.n[0] || J >= f.grid.n[1] || K >= f.grid.n[2]) continue;
           const std::size_t at = f.grid.linear(I, J, K);
           ++all[at];
-          bone[at] += row[i] >= level;
+          bone[at] += row[si] >= level;
         }
       }
     for (std::size_t i = 0; i < f.v.size(); ++i)
@@ -231,7 +255,8 @@ Field fraction_field(const Volume& ct, double spacing, double level) {
     for (long K = 0; K < nz; ++K)
       for (int J = 0; J < f.grid.n[1]; ++J)
         for (int I = 0; I < f.grid.n[0]; ++I) {
-          const double h = interpolate(ct, grid_point(f.grid, I, J, static_cast<double>(K)));
+          const Vec3 q = grid_point(f.grid, I, J, static_cast<double>(K));
+          const double h = interpolate(ct, flip ? flip->apply(q) : q);
           if (!std::isnan(h)) f.v[f.grid.linear(I, J, static_cast<int>(K))] = h >= level ? 1.0f : 0.0f;
         }
   }
@@ -403,6 +428,49 @@ Vec3 Pose::inverse(const Vec3& p) const {
   return (1.0 / (scale * scale)) * a;
 }
 
+Vec3 ScanMirror::apply(const Vec3& p) const {
+  return {m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + b[0], m[3] * p[0] + m[4] * p[1] + m[5] * p[2] + b[1],
+          m[6] * p[0] + m[7] * p[1] + m[8] * p[2] + b[2]};
+}
+
+ScanMirror lr_mirror(const Geometry& g) {
+  ScanMirror s;
+  // The array axis whose direction has the largest L-R (x) component.
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(g.direction[a]) > std::abs(g.direction[s.axis])) s.axis = a;
+  auto flipped = [&](const Vec3& p) {
+    Vec3 q = g.lps_to_index(p);
+    q[s.axis] = static_cast<double>(g.size[s.axis]) - 1 - q[s.axis];
+    return g.index_to_lps(q[0], q[1], q[2]);
+  };
+  s.b = flipped({0, 0, 0});
+  for (int c = 0; c < 3; ++c) {
+    Vec3 e{0, 0, 0};
+    e[c] = 1;
+    const Vec3 col = flipped(e) - s.b;
+    for (int r = 0; r < 3; ++r) s.m[3 * r + c] = col[r];
+  }
+  return s;
+}
+
+Pose mirror(const Pose& p, const ScanMirror& s) {
+  // A' = m A X with X = diag(-1, 1, 1), the atlas frame's own mirror; A' =
+  // scale R' M with R' = m R X a rotation (two reflections), M unchanged.
+  const Affine A = affine(p);
+  double R[9];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      double acc = 0;
+      for (int k = 0; k < 3; ++k) acc += s.m[3 * r + k] * A.A[3 * k + c];
+      const double M = c == 0 ? -1.0 : (c == 1 ? ((p.flip & 1) ? -1.0 : 1.0) : ((p.flip & 2) ? -1.0 : 1.0));
+      R[3 * r + c] = acc * M / p.scale;
+    }
+  Pose q = p;
+  q.t = s.apply(p.t);
+  set_angles(q, R);
+  return q;
+}
+
 Field bone_fraction(const Volume& ct, double spacing_mm, double bone_hu, double blur_mm) {
   Field f = fraction_field(ct, spacing_mm, bone_hu);
   blur(f, blur_mm);
@@ -470,15 +538,64 @@ Fit fit(const Atlas& atlas, const Field& scan) {
   return out;
 }
 
+namespace {
+
+// Midpoint of two upright poses: mean translation, geometric-mean scale and
+// the rotation halfway along the geodesic between the two.
+Pose midpoint(const Pose& a, const Pose& b) {
+  Pose m = a;
+  for (int d = 0; d < 3; ++d) m.t[d] = 0.5 * (a.t[d] + b.t[d]);
+  m.scale = std::sqrt(a.scale * b.scale);
+  const Eigen::Quaterniond q = quaternion(a).slerp(0.5, quaternion(b));
+  const Eigen::Matrix3d R = q.toRotationMatrix();
+  double r[9];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) r[3 * i + j] = R(i, j);
+  set_angles(m, r);
+  return m;
+}
+
+bool agree(const Pose& a, const Pose& b) {
+  return a.flip == b.flip && distance(a.t, b.t) < kPoseAgreementMm &&
+         quaternion(a).angularDistance(quaternion(b)) < kPoseAgreementDeg * kDeg;
+}
+
+}  // namespace
+
+Fit combine_mirror_fits(const Fit& a, const Fit& b_mirrored, const ScanMirror& s) {
+  Fit b = b_mirrored;
+  b.pose = mirror(b_mirrored.pose, s);
+  b.mirrored = mirror(b_mirrored.mirrored, s);
+  Fit out = a.ncc >= b.ncc ? a : b;
+  if (a.ncc > -1 && b.ncc > -1 && agree(a.pose, b.pose)) {
+    out.pose = midpoint(a.pose, b.pose);
+    out.ncc = 0.5 * (a.ncc + b.ncc);
+    out.coverage = 0.5 * (a.coverage + b.coverage);
+  }
+  // The orientation check's best flipped pose: the better of the two.
+  const Fit& m = a.mirrored_ncc >= b.mirrored_ncc ? a : b;
+  out.mirrored = m.mirrored;
+  out.mirrored_ncc = m.mirrored_ncc;
+  out.found = out.ncc >= kMinFitNcc;
+  return out;
+}
+
 Fit fit_ct(const Volume& ct, double bone_hu) {
   const Atlas& a = shipped();
   if (a.cases == 0) return {};
   const auto t0 = std::chrono::steady_clock::now();
   DebugLap lap("MANDISYM_DEBUG_ATLAS", "atlas");
-  const Field f = bone_fraction(ct, a.grid.spacing, bone_hu, kFieldBlurMm);
-  lap("bone fraction");
-  Fit r = fit(a, f);
-  lap("fit");
+  // The scan and its mirror fitted side by side (the search is mostly serial).
+  const ScanMirror s = lr_mirror(ct.geom);
+  auto fit_field = [&](const ScanMirror* flip) {
+    Field f = fraction_field(ct, a.grid.spacing, bone_hu, flip);
+    blur(f, kFieldBlurMm);
+    return fit(a, f);
+  };
+  std::future<Fit> of_mirror = std::async(std::launch::async, fit_field, &s);
+  const Fit direct = fit_field(nullptr);
+  Fit r = combine_mirror_fits(direct, of_mirror.get(), s);
+  lap("bone fraction and fit, scan and mirror");
   if (lap.on())
     std::fprintf(stderr, "  atlas: ncc %.3f (mirrored %.3f), coverage %.2f, scale %.2f, centre %.1f %.1f %.1f\n", r.ncc, r.mirrored_ncc,
                  r.coverage, r.pose.scale, r.pose.t[0], r.pose.t[1], r.pose.t[2]);

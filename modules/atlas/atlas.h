@@ -81,6 +81,21 @@ struct Fit {
 // Below this NCC the atlas is taken as not found in the scan (docs/atlas.md).
 constexpr double kMinFitNcc = 0.35;
 
+// A scan's left-right mirror as a flip of its array axis nearest to the
+// L-R (LPS x) axis, about the scan's centre: voxel i of that axis trades
+// places with voxel n - 1 - i. In LPS it is the reflection p -> m p + b.
+struct ScanMirror {
+  int axis = 0;
+  double m[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  Vec3 b{0, 0, 0};
+  Vec3 apply(const Vec3& p) const;
+};
+ScanMirror lr_mirror(const Geometry& g);
+
+// The atlas placed by pose p, then mirrored by s: as a pose, since the atlas
+// is mirror-symmetric (its frame's x flip leaves it unchanged).
+Pose mirror(const Pose& p, const ScanMirror& s);
+
 // Bone fraction (HU >= bone_hu) of a CT on an axis-aligned LPS grid of the
 // given spacing covering the scan, Gaussian-blurred with sigma blur_mm (0:
 // none); voxels the scan does not reach are NaN.
@@ -91,8 +106,22 @@ Field mask_fraction(const Mask& m, double spacing_mm, double blur_mm);
 // Fits atlas to a scan's bone fraction field (bone_fraction at the atlas's
 // spacing, blurred by kFieldBlurMm).
 Fit fit(const Atlas& atlas, const Field& scan_bone);
-// bone_fraction + fit with the shipped atlas.
+// The shipped atlas fitted to a scan and to its mirror (lr_mirror), the two
+// poses combined (docs/atlas.md, "Mirror symmetrisation"): the fit of a
+// mirrored scan is then the mirror of the fit.
 Fit fit_ct(const Volume& ct, double bone_hu);
+
+// Two fits of one scan combined: fits `a` (the scan) and `b_mirrored` (its
+// mirror, carried back by s) agree within kPoseAgreementMm and
+// kPoseAgreementDeg: their mean pose (translation, geometric-mean scale,
+// rotation midpoint) and mean NCC; otherwise the one with the higher NCC.
+Fit combine_mirror_fits(const Fit& a, const Fit& b_mirrored, const ScanMirror& s);
+// Two fits agree when the atlas centre moves less than this (two atlas
+// voxels: twice the pattern search's starting step, 3 mm, on the 6 mm
+// template points; a different optimum lies a coarse-search cell, 12 mm, away)...
+constexpr double kPoseAgreementMm = 6.0;
+// ...and the atlas axes turn less than this (twice that step's 3 degrees).
+constexpr double kPoseAgreementDeg = 6.0;
 
 // Blur (mm) applied to every bone-fraction field, in training and at run time.
 constexpr double kFieldBlurMm = 3.0;

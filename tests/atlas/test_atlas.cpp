@@ -162,6 +162,71 @@ TEST(Atlas, RealScanFitsWhereTheContourIsAndMirrorsWithTheScan) {
   ASSERT_TRUE(m.found);
   const Vec3 q = cg.lps_to_index(f.pose.t);
   const Vec3 expected = cg.index_to_lps(static_cast<double>(cg.size[0] - 1) - q[0], q[1], q[2]);
-  EXPECT_LT(distance(m.pose.t, expected), 3.0);
-  EXPECT_NEAR(m.ncc, f.ncc, 0.03);
+  EXPECT_LT(distance(m.pose.t, expected), 1e-6);
+  // Symmetrised (fit_ct fits the scan and its mirror): the mirrored scan's
+  // fit is the mirror of the fit, to rounding.
+  const Pose back = mirror(m.pose, lr_mirror(cg));
+  EXPECT_LT(distance(back.t, f.pose.t), 1e-6);
+  EXPECT_NEAR(back.pitch, f.pose.pitch, 1e-9);
+  EXPECT_NEAR(back.yaw, f.pose.yaw, 1e-9);
+  EXPECT_NEAR(back.roll, f.pose.roll, 1e-9);
+  EXPECT_NEAR(back.scale, f.pose.scale, 1e-9);
+  EXPECT_NEAR(m.ncc, f.ncc, 1e-12);
+}
+
+// The scan mirror (an array flip about the scan's centre) as a pose map: the
+// mirrored placement maps the atlas's own mirror image where the scan
+// mirror takes the placement, and mirroring twice gives the pose back.
+TEST(Atlas, MirroredPoseIsTheScanMirrorOfThePlacement) {
+  Geometry g;
+  g.size = {100, 120, 80};
+  g.spacing = {0.9, 0.9, 2.5};
+  g.origin = {-40, 20, -100};
+  const double c = std::cos(0.3), s = std::sin(0.3);
+  g.direction = {c, -s, 0, s, c, 0, 0, 0, 1};  // turned 17 degrees about the vertical axis
+  const ScanMirror sm = lr_mirror(g);
+  EXPECT_EQ(sm.axis, 0);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int n = 0; n < 20; ++n) {
+    Pose p;
+    p.t = {30 * u(rng), 30 * u(rng), 30 * u(rng)};
+    p.pitch = 0.4 * u(rng), p.yaw = 0.4 * u(rng), p.roll = 0.4 * u(rng);
+    p.scale = 1.0 + 0.2 * u(rng);
+    p.flip = n % 4;
+    const Pose m = mirror(p, sm);
+    const Vec3 a{60 * u(rng), 60 * u(rng), 60 * u(rng)};
+    EXPECT_LT(distance(m.apply({-a[0], a[1], a[2]}), sm.apply(p.apply(a))), 1e-9);
+    const Pose back = mirror(m, sm);
+    EXPECT_LT(distance(back.apply(a), p.apply(a)), 1e-9);
+  }
+}
+
+// Two fits of one scan that agree are averaged; a far one loses to the better.
+TEST(Atlas, MirrorFitsAreAveragedWhenTheyAgree) {
+  Geometry g;
+  g.size = {64, 64, 64};
+  const ScanMirror sm = lr_mirror(g);
+  Fit a;
+  a.ncc = 0.8;
+  a.pose.t = {10, 0, 0};
+  a.pose.yaw = 2 * kDeg;
+  Fit b;  // b's pose is in the mirrored scan's frame
+  b.ncc = 0.7;
+  Pose near = a.pose;
+  near.t[1] += 2.0;
+  near.yaw += 2 * kDeg;
+  b.pose = mirror(near, sm);
+  const Fit both = combine_mirror_fits(a, b, sm);
+  EXPECT_NEAR(both.ncc, 0.75, 1e-12);
+  EXPECT_NEAR(both.pose.t[1], 1.0, 1e-9);
+  EXPECT_NEAR(both.pose.yaw, 3 * kDeg, 1e-9);
+  EXPECT_TRUE(both.found);
+  Pose far = a.pose;
+  far.t[2] += 20.0;
+  b.pose = mirror(far, sm);
+  b.ncc = 0.9;
+  const Fit better = combine_mirror_fits(a, b, sm);
+  EXPECT_NEAR(better.ncc, 0.9, 1e-12);
+  EXPECT_LT(distance(better.pose.t, far.t), 1e-9);
 }
