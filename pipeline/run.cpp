@@ -302,7 +302,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     if (seg.atlas.found) po.atlas_superior = seg.atlas.pose.superior();
     S.landmarks = landmarks::detect_in_head_frame(scan.volume, surf.mesh, lo, po, &S.palate, &S.head_frame);
     for (const auto& w : S.landmarks.warnings) S.warnings.push_back(w);
-    for (const auto& m : S.landmarks.missing) S.warnings.push_back("landmarks: " + m + " not found");
+    for (const auto& m : S.landmarks.missing) {
+      const auto why = S.landmarks.why_missing.find(m);
+      S.warnings.push_back("landmarks: " + m + " missing: " + (why != S.landmarks.why_missing.end() ? why->second : "not found"));
+    }
     stage("landmarks", 4);
 
     // 5. symmetry plane + reference configuration

@@ -247,6 +247,9 @@ json::Value results_json(const RunSummary& s) {
   auto& missing = root["landmark_detection"]["missing"];
   missing = Value::array();
   for (const auto& m : s.landmarks.missing) missing.push_back(m);
+  auto& why = root["landmark_detection"]["why_missing"];
+  why = Value::object();
+  for (const auto& [name, reason] : s.landmarks.why_missing) why[name] = reason;
 
   auto& hf = root["head_frame"];
   hf["superior"] = vec(s.head_superior());
@@ -613,7 +616,8 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     const Vec3* p = s.landmarks.landmarks.find(n);
     h << "<tr><td>" << E(n) << "</td>";
     if (!p) {
-      h << "<td colspan=6>missing</td></tr>\n";
+      const auto why = s.landmarks.why_missing.find(n);
+      h << "<td colspan=6>missing" << (why != s.landmarks.why_missing.end() ? ": " + E(why->second) : std::string()) << "</td></tr>\n";
       continue;
     }
     h << "<td>" << fixed((*p)[0]) << "</td><td>" << fixed((*p)[1]) << "</td><td>" << fixed((*p)[2]) << "</td>";

@@ -460,8 +460,11 @@ void place_midline(const Frame& f, double apex_radius_mm, LandmarkSet& out) {
 // nor one whose neighbourhood (the apex radius its extreme point is refined
 // over) reaches the scan's edge: the bone there is cut (a gonion 2 mm inside
 // a lateral cut was the middle of what was left of the angle, 2.7 mm off).
-void drop_landmarks_at_edge(const Mesh& mesh, const Geometry& scan_grid, double apex_radius_mm, LandmarkSet& landmarks,
-                            std::vector<std::string>& warnings) {
+const char* const kAtTheEdge = "it lies at the edge of the scan: the mandible is cut there (truncated), so its extreme point is not in the scan";
+
+// Returns the mesh vertices on the scan's edge.
+std::vector<Vec3> drop_landmarks_at_edge(const Mesh& mesh, const Geometry& scan_grid, double apex_radius_mm, LandmarkSet& landmarks,
+                                         std::map<std::string, std::string>& why) {
   const Geometry& sg = scan_grid;
   auto at_edge = [&](const Vec3& p) {
     const Vec3 q = sg.lps_to_index(p);
@@ -477,11 +480,12 @@ void drop_landmarks_at_edge(const Mesh& mesh, const Geometry& scan_grid, double 
     bool edge = at_edge(p);
     for (std::size_t i = 0; i < cut.size() && !edge; ++i) edge = norm(cut[i] - p) <= apex_radius_mm;
     if (edge)
-      warnings.push_back("landmarks: " + name + " lies at the edge of the scan (truncated): reported missing");
+      why[name] = kAtTheEdge;
     else
       kept.set(name, p);
   }
   landmarks = kept;
+  return cut;
 }
 
 }  // namespace
@@ -521,6 +525,45 @@ Plane mandible_plane(const Mesh& mesh) {
   pl.point = c - pl.signed_distance(c) * pl.normal;
   return pl;
 }
+
+namespace {
+
+// Why a landmark is missing (docs/landmarks.md, "Missing landmarks").
+const char* const kNoExtremity = "the surface has no geodesic extremity on this side above the body (the ramus is cut or not segmented)";
+const char* const kNoSecondProcess =
+    "one process only: no geodesic extremity of this ramus lies at least 10 mm in front of or behind its highest one within 30 mm of "
+    "its height, so the coronoid process is not separate from the condyle on the surface (thin or lost at this voxel size, joined "
+    "to the zygomatic arch, or filling the sigmoid notch)";
+
+// Every landmark not found gets its reason (detect() step 6). cut_side[s]:
+// the surface of side s (0 left, 1 right) reaches the scan's edge; a
+// bilateral landmark missing there is put down to the cut first.
+void explain_missing(const GonialSide (&gonial)[2], const bool (&cut_side)[2], Result& r) {
+  for (const auto& name : landmark_names()) {
+    if (r.landmarks.has(name)) {
+      r.why_missing.erase(name);
+      continue;
+    }
+    r.missing.push_back(name);
+    const bool bilateral = name.size() > 2 && name[name.size() - 2] == '_';
+    const bool on_cut_side = bilateral && cut_side[name.back() == 'L' ? 0 : 1];
+    if (on_cut_side && r.why_missing[name] != kAtTheEdge)
+      r.why_missing[name] = std::string("this side of the mandible is cut by the edge of the scan (truncated)") +
+                            (r.why_missing[name].empty() ? "" : ", and " + r.why_missing[name]);
+    if (!r.why_missing[name].empty()) continue;
+    if (name == "Go_L" || name == "Go_R")
+      r.why_missing[name] = gonial[name == "Go_L" ? 0 : 1].ok
+                                ? "no gonial bisector: neither side's ramus and body border tangents were found"
+                                : "the posterior ramus border and the inferior body border of this side were not found (no convex-hull "
+                                  "edges facing posterior and inferior in the sagittal projection)";
+    else if (name == "Me" || name == "Pog")
+      r.why_missing[name] = "no symphysis: no surface near the symmetry plane in front of the rami";
+    else
+      r.why_missing[name] = "not found on the surface";
+  }
+}
+
+}  // namespace
 
 Result detect(const Mesh& mesh, const Options& opt) {
   Result r;
@@ -582,6 +625,11 @@ Result detect(const Mesh& mesh, const Options& opt) {
     }
     if (co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, highest_near(co), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, highest_near(cr), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
+    if (top.empty()) {
+      r.why_missing["Co" + suf] = r.why_missing["Cr" + suf] = kNoExtremity;
+    } else if (cr < 0) {
+      r.why_missing["Cr" + suf] = kNoSecondProcess;
+    }
 
     // Gonion, first pass (gonial_tangents).
     gonial[s > 0 ? 0 : 1] = gonial_tangents(f, s);
@@ -594,9 +642,11 @@ Result detect(const Mesh& mesh, const Options& opt) {
   place_midline(f, opt.apex_radius_mm, r.landmarks);
 
   // 5. Landmarks at the edge of a truncated scan are missing (drop_landmarks_at_edge).
-  if (opt.scan_grid) drop_landmarks_at_edge(mesh, *opt.scan_grid, opt.apex_radius_mm, r.landmarks, r.warnings);
-  for (const auto& name : landmark_names())
-    if (!r.landmarks.has(name)) r.missing.push_back(name);
+  bool cut_side[2] = {false, false};
+  if (opt.scan_grid)
+    for (const Vec3& v : drop_landmarks_at_edge(mesh, *opt.scan_grid, opt.apex_radius_mm, r.landmarks, r.why_missing))
+      if (std::abs(dot(v - f.origin, e_ml)) > kSideFraction * f.umax) cut_side[dot(v - f.origin, e_ml) > 0 ? 0 : 1] = true;
+  explain_missing(gonial, cut_side, r);
   return r;
 }
 

@@ -6,6 +6,7 @@
 // tangents of the ramus and lower border give the gonial angle.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -35,6 +36,8 @@ struct Options {
 struct Result {
   LandmarkSet landmarks;       // LPS mm; missing landmarks are absent
   std::vector<std::string> missing;
+  // Why each missing landmark is missing (name -> one sentence; docs/landmarks.md, "Missing landmarks").
+  std::map<std::string, std::string> why_missing;
   std::vector<std::string> warnings;
   std::string method;
   Plane plane;                 // symmetry plane used for the labelling (normal to patient left)

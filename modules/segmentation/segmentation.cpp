@@ -1816,6 +1816,25 @@ static Result segment_auto_with(const Volume& ct, const Options& opt, GridContex
 // large condyle (hyperplasia, a tumour) ends inside the scan and is kept.
 constexpr double kProcessWideningRatio = 2.0;
 
+// Body cross-section (voxels at or above kBodyHu + offset_hu) of each slice
+// across grid axis `axis`.
+constexpr double kBodyHu = -500.0;
+
+static std::vector<std::size_t> body_profile(const Volume& ct, int axis, double offset_hu) {
+  const Geometry& g = ct.geom;
+  std::vector<std::size_t> body(g.size[axis], 0);
+  const float tissue = static_cast<float>(offset_hu + kBodyHu);
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j) {
+      const float* row = ct.hu.data() + g.linear(0, j, k);
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        const std::size_t v[3] = {i, j, k};
+        body[v[axis]] += row[i] >= tissue;
+      }
+    }
+  return body;
+}
+
 void trim_welded_skull_base(const Volume& ct, Result& r) {
   const Geometry& g = r.mask.geom;
   // Grid axes along the patient's left-right and inferior-superior axes.
@@ -1877,16 +1896,7 @@ void trim_welded_skull_base(const Volume& ct, Result& r) {
   // The top of the scan: its last slice, or the last one through the body
   // (a quarter of the widest body cross-section above -500 HU) when empty
   // slices pad the volume beyond it.
-  std::vector<std::size_t> body(ns, 0);
-  const float tissue = static_cast<float>(r.offset_hu - 500.0);
-  for (std::size_t k = 0; k < g.size[2]; ++k)
-    for (std::size_t j = 0; j < g.size[1]; ++j) {
-      const float* row = ct.hu.data() + g.linear(0, j, k);
-      for (std::size_t i = 0; i < g.size[0]; ++i) {
-        const std::size_t v[3] = {i, j, k};
-        body[v[ver]] += row[i] >= tissue;
-      }
-    }
+  const std::vector<std::size_t> body = body_profile(ct, ver, r.offset_hu);
   const std::size_t widest = *std::max_element(body.begin(), body.end());
   std::size_t top = ns - 1;
   while (top > 0 && 4 * body[up[top]] < widest) --top;
@@ -1947,12 +1957,70 @@ static Box scanned_box(const Volume& ct) {
   return b;
 }
 
+// Where the scanned body ends (docs/segmentation.md, "The scanned body"): a
+// scan may hold the head only up to a level and pad the rest of its grid
+// with air or noise (OpenKBP's volumes end at the field of view that way).
+// Across the scan's vertical axis, the scanned part is the run of slices
+// around the mandible's whose body cross-section is at least
+// kScannedBodyFraction of its median over the mandible's slices: the head
+// above the mandible (cranium, ~150 x 190 mm) and the neck below (~110 x
+// 120 mm) are never under half the cross-section at the mandible's level
+// (face and jaws, ~140 x 160 mm; Farkas 1994), while a scan's end drops it
+// to a few percent within a slice. The mask in the run's end slice is cut
+// by the scan: truncated, and the scanned grid ends there.
+constexpr double kScannedBodyFraction = 0.25;
+
+static void end_at_scanned_body(const Volume& ct, Result& r) {
+  const Geometry& g = r.mask.geom;
+  int ver = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(g.direction[6 + a]) > std::abs(g.direction[6 + ver])) ver = a;
+  const Box b = bounding_box(r.mask.data.data(), g.size, 0);
+  if (b.size[0] == 0 || std::abs(g.direction[6 + ver]) < 0.9) return;
+  const std::vector<std::size_t> body = body_profile(ct, ver, r.offset_hu);
+  std::vector<std::size_t> at_mandible(body.begin() + static_cast<long>(b.lo[ver]), body.begin() + static_cast<long>(b.lo[ver] + b.size[ver]));
+  std::nth_element(at_mandible.begin(), at_mandible.begin() + static_cast<long>(at_mandible.size() / 2), at_mandible.end());
+  const double floor = kScannedBodyFraction * static_cast<double>(at_mandible[at_mandible.size() / 2]);
+  auto scanned = [&](std::size_t s) { return static_cast<double>(body[s]) >= floor; };
+  const std::size_t mid = b.lo[ver] + b.size[ver] / 2;
+  if (!scanned(mid)) return;  // no body at the mandible's middle: leave the grid as it is
+  std::size_t lo = mid, hi = mid;
+  while (lo > 0 && scanned(lo - 1)) --lo;
+  while (hi + 1 < g.size[ver] && scanned(hi + 1)) ++hi;
+  if (lo == 0 && hi + 1 == g.size[ver]) return;
+  Geometry sg = r.scanned_grid;
+  const Vec3 lo_index_lps = [&] {
+    Vec3 q{0, 0, 0};
+    q[ver] = static_cast<double>(lo);
+    return g.index_to_lps(q[0], q[1], q[2]);
+  }();
+  sg.origin = lo_index_lps;
+  sg.size[ver] = hi - lo + 1;
+  r.scanned_grid = sg;
+  // The mask in an end slice of the run (inside the grid) is cut by the scan.
+  std::size_t cut = 0;
+  for (std::size_t k = b.lo[2]; k < b.lo[2] + b.size[2]; ++k)
+    for (std::size_t j = b.lo[1]; j < b.lo[1] + b.size[1]; ++j)
+      for (std::size_t i = b.lo[0]; i < b.lo[0] + b.size[0]; ++i) {
+        const std::size_t v[3] = {i, j, k};
+        cut += r.mask.data[g.linear(i, j, k)] && ((lo > 0 && v[ver] <= lo) || (hi + 1 < g.size[ver] && v[ver] >= hi));
+      }
+  if (cut == 0) return;
+  static const std::string kWarning = "the mandible touches the edge of the scan: it may be truncated";
+  if (!r.truncated) r.warnings.push_back(kWarning);
+  r.truncated = true;
+  r.warnings.push_back("the scanned body ends at the mandible (its cross-section falls below " +
+                       std::to_string(static_cast<int>(kScannedBodyFraction * 100)) +
+                       " % of that at the mandible's level): the slices beyond are padding, and the mandible is cut there");
+}
+
 static Result segment_scanned(const Volume& ct, const Options& opt) {
   Result r = segment_auto(ct, opt);
   if (r.separation_radius_mm > 0) trim_welded_skull_base(ct, r);
   check_width(r);
   r.atlas_agreement = atlas_agreement(r.mask, r.atlas);
   r.scanned_grid = ct.geom;
+  end_at_scanned_body(ct, r);
   return r;
 }
 

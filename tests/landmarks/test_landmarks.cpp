@@ -148,9 +148,10 @@ TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
   EXPECT_FALSE(r.landmarks.has("Co_R"));
   EXPECT_TRUE(r.landmarks.has("Me"));
   EXPECT_TRUE(r.landmarks.has("Pog"));
-  bool warned = false;
-  for (const auto& w : r.warnings) warned |= w.find("edge of the scan") != std::string::npos;
-  EXPECT_TRUE(warned);
+  for (const char* n : {"Co_L", "Co_R"}) {
+    ASSERT_TRUE(r.why_missing.count(n)) << n;
+    EXPECT_NE(r.why_missing.at(n).find("edge of the scan"), std::string::npos) << r.why_missing.at(n);
+  }
   // Without the scan grid the detector cannot know, and places them.
   EXPECT_TRUE(ms::landmarks::detect(c.mesh).landmarks.has("Co_L"));
 }
@@ -163,7 +164,14 @@ TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
 TEST(Landmarks, LandmarksNearALateralCutAreMissing) {
   const CutScan c = landmarks_on_cut_scan({150, 150, 140}, {30, 0, 0});
   const auto& r = c.r;
-  for (const char* n : {"Co_L", "Cr_L", "Go_L"}) EXPECT_FALSE(r.landmarks.has(n)) << n;
+  for (const char* n : {"Co_L", "Cr_L", "Go_L"}) {
+    EXPECT_FALSE(r.landmarks.has(n)) << n;
+    // Never silently missing: each says why (docs/landmarks.md, "Missing landmarks").
+    ASSERT_TRUE(r.why_missing.count(n)) << n;
+    EXPECT_NE(r.why_missing.at(n).find("edge of the scan"), std::string::npos) << r.why_missing.at(n);
+  }
+  for (const auto& n : r.missing) EXPECT_TRUE(r.why_missing.count(n)) << n;
+  for (const auto& [n, why] : r.why_missing) EXPECT_FALSE(r.landmarks.has(n)) << n << ": " << why;
   for (const char* n : {"Co_R", "Cr_R", "Go_R", "Me", "Pog"}) {
     ASSERT_TRUE(r.landmarks.has(n)) << n;
     EXPECT_LE(ms::norm(*r.landmarks.find(n) - *c.ph.landmarks.find(n)), 1.5) << n;

@@ -726,6 +726,40 @@ TEST(AutoSegmentation, MirroredRealScanGivesTheMirroredMask) {
   }
 }
 
+// A real scan whose scanned body ends inside the grid (the slices above the
+// condyles replaced by air with a few soft-tissue islands, as OpenKBP's
+// volumes beyond their field of view): the mandible is reported truncated
+// at that end, and the scanned grid ends there; the untouched scan is not.
+TEST(AutoSegmentation, ScannedBodyEndingAtTheCondylesIsTruncation) {
+  const std::string dir = std::string(MANDISYM_SHARED_DATA) + "/openkbp/pt_245";
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const auto c = ms::testing::load_openkbp(dir);
+  const Geometry& g = c.ct.geom;
+  const segmentation::Result whole = segmentation::segment_mandible(c.ct);
+  EXPECT_FALSE(whole.truncated);
+  // Slice index k runs inferiorly (tests/support/openkbp.h): the contour's top is its lowest k.
+  std::size_t top = g.size[2];
+  for (std::size_t k = 0; k < g.size[2] && top == g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1] && top == g.size[2]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        if (c.mandible.data[g.linear(i, j, k)]) {
+          top = k;
+          break;
+        }
+  ASSERT_LT(top, g.size[2]);
+  Volume cut = c.ct;
+  for (std::size_t k = 0; k + 1 < top + 2; ++k)  // up to 2 slices below the contour's top
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        cut.hu[g.linear(i, j, k)] = (i % 40 == 0 && j % 40 == 0) ? 40.0f : -1000.0f;
+  const segmentation::Result r = segmentation::segment_mandible(cut);
+  EXPECT_TRUE(r.truncated);
+  EXPECT_LT(r.scanned_grid.size[2], g.size[2]);
+  bool said = false;
+  for (const auto& w : r.warnings) said = said || w.find("scanned body ends") != std::string::npos;
+  EXPECT_TRUE(said);
+}
+
 // The Visible Human female head (1 mm, real, never tuned on) against its
 // reference mask (scripts/reference-vhf, docs/reference-vhf.md). Before the
 // atlas the skull vault was taken (199 cm3, Dice 0); with the atlas's zone
