@@ -52,6 +52,12 @@ const cli::CommandSpec& phantom_spec() {
        {"condyle-R", "MM", "condylar head size change, right", "0"},
        {"chin", "MM", "chin (symphysis) deviation, + towards patient left", "0"},
        {"scale", "F", "size of the whole head model, knobs included (0.6..1.4; 0.7 ~ a young child's mandible)", "1"},
+       {"cortex", "MM", "cortical shell thickness of the mandible", "2"},
+       {"cortical-hu", "HU", "cortical bone density of the mandible", "1600"},
+       {"cancellous-hu", "HU", "cancellous bone density of the mandible", "350"},
+       {"crown-scale", "F", "tooth crown size (0.7..1.3)", "1"},
+       {"random-anatomy", "N", "a member of the random anatomy family (docs/phantom.md): the anatomy knobs above "
+        "drawn from adult ranges by seed N; scanner knobs (spacing, fov, noise, blur, pose, metal) are kept", ""},
        {"seed", "N", "random seed", "1"},
        {"compression", "KIND", "DICOM transfer syntax: raw, jpeg-lossless, jpeg2000 (both lossless)", "raw"},
        {"no-preview", "", "do not write preview PNGs", ""},
@@ -132,9 +138,18 @@ int phantom_command(const cli::Args& a) {
   }
   p.chin_deviation_mm = a.number("chin", 0);
   p.scale = a.number("scale", 1);
+  p.cortex_mm = a.number("cortex", p.cortex_mm);
+  p.cortical_hu = a.number("cortical-hu", p.cortical_hu);
+  p.cancellous_hu = a.number("cancellous-hu", p.cancellous_hu);
+  p.crown_scale = a.number("crown-scale", p.crown_scale);
   const double seed = a.number("seed", 1);
   if (seed < 0 || seed != std::floor(seed)) throw Error(ExitCode::Usage, "--seed: expected a non-negative integer");
   p.seed = static_cast<std::uint64_t>(seed);
+  if (a.has("random-anatomy")) {
+    const double n = a.number("random-anatomy", 0);
+    if (n < 0 || n != std::floor(n)) throw Error(ExitCode::Usage, "--random-anatomy: expected a non-negative integer");
+    p = phantom::random_anatomy(static_cast<std::uint64_t>(n), p);
+  }
 
   phantom::Phantom ph;
   const auto t0 = std::chrono::steady_clock::now();
@@ -201,6 +216,11 @@ int phantom_command(const cli::Args& a) {
   params["edentulous"] = p.edentulous;
   params["mirror"] = p.mirror;
   params["scale"] = p.scale;
+  params["cortex_mm"] = p.cortex_mm;
+  params["cortical_hu"] = p.cortical_hu;
+  params["cancellous_hu"] = p.cancellous_hu;
+  params["crown_scale"] = p.crown_scale;
+  if (a.has("random-anatomy")) params["random_anatomy"] = a.number("random-anatomy", 0);
   params["seed"] = static_cast<double>(p.seed);
   params["compression"] = spec.compression;
   params["mandible_volume_mm3"] = ph.mandible.count() * ph.mandible.geom.voxel_volume_mm3();

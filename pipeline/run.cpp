@@ -254,6 +254,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     S.seg_marker_source = seg.marker_source;
     S.atlas = seg.atlas;
     S.atlas_agreement = seg.atlas_agreement;
+    S.image_zone_dice = seg.image_zone_dice;
     for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
     stage("segment", 2);
     mask_outputs = std::async(std::launch::async, [&scan, &seg, &staging, figures_on] {

@@ -33,6 +33,14 @@ constexpr double kMinAtlasNcc = 0.6;
 // missing). openkbp-train folds 1-4 agree at 0.43-0.66, every mask with
 // Dice >= 0.73 against the clinical contour: a warning below 0.4.
 constexpr double kMinAgreement = 0.4;
+// Two independent segmentations of one scan (the image's core/watershed
+// separation and the atlas's zone) that the atlas could not decide between
+// must agree as two observers do: inter-observer Dice of mandible contours on
+// CT is about 0.9 (radiotherapy organ-at-risk delineation, e.g. Brouwer et
+// al. 2012, Radiother Oncol 104:326); below 0.85 one of them is wrong and
+// nothing says which. Random phantom anatomy outside the atlas's range
+// (docs/phantom.md): image 0.98 against the truth, zone 0.71-0.72.
+constexpr double kMinSeparationsDice = 0.85;
 
 }  // namespace
 
@@ -72,6 +80,11 @@ Qc evaluate_qc(const RunSummary& s) {
     add("atlas_agreement", s.atlas.found ? s.atlas_agreement : kNaN, agree_range, "",
         "openkbp-train folds 1-4 agree at 0.43-0.66 (all with Dice >= 0.73 against the clinical contour)", false,
         "the mask holds little of the atlas's mandible: a small or atrophic mandible, or parts of it missing");
+    const double sep_range[2] = {kMinSeparationsDice, 1.0};
+    add("separations_agree", s.image_zone_dice >= 0 ? s.image_zone_dice : kNaN, sep_range, "",
+        "inter-observer Dice of mandible contours on CT ~0.9 (Brouwer et al. 2012)", true,
+        "the image's separation and the atlas's zone disagree and the atlas did not verify the image's: the mandible's "
+        "extent is uncertain (anatomy beyond the atlas's range, or another bone joined in the image)");
   }
   // 2. Anatomical plausibility.
   add("mandible_volume_cm3", s.seg_volume_mm3 / 1000.0, kVolumeCm3, "cm3",

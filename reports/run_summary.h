@@ -34,6 +34,7 @@ struct RunSummary {
   // fitted) and the mask's agreement with it (-1: not computed).
   atlas::Fit atlas;
   double atlas_agreement = -1;
+  double image_zone_dice = -1;  // segmentation::Result::image_zone_dice
   surface::MeshStats mesh;
   Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
   double closing_mm = 0;          // closing before meshing (0 = none)

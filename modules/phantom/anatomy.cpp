@@ -191,9 +191,9 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
       th.normal = {-tan[1], tan[0], 0};
       const double z = z_occlusal(t) + (grow > 0 ? 0.5 : -0.5) * p_.occlusal_gap_mm;
       th.base = {x, y, z};
-      th.half_md = kinds[k].md / 2.0;
-      th.half_bl = kinds[k].bl / 2.0;
-      th.crown_h = kinds[k].crown;
+      th.half_md = p_.crown_scale * kinds[k].md / 2.0;
+      th.half_bl = p_.crown_scale * kinds[k].bl / 2.0;
+      th.crown_h = p_.crown_scale * kinds[k].crown;
       th.root_len = kinds[k].root;
       th.dir = grow;
       out.push_back(th);
@@ -435,11 +435,11 @@ double Anatomy::hu(const Vec3& p, double w) const {
   }
   paint(v, cover(upper_teeth(p, false)), 1800.0);
   paint(v, cover(upper_teeth(p, true)), 2600.0);
-  // mandible: cortical shell (2 mm) over a cancellous core
+  // mandible: cortical shell (cortex_mm) over a cancellous core
   const double mb = mandible_bone(p);
-  if (mb < w + 2.5) {
-    paint(v, cover(mb), 1600.0);
-    paint(v, cover(mb + 2.0), 350.0);
+  if (mb < w + p_.cortex_mm + 0.5) {
+    paint(v, cover(mb), p_.cortical_hu);
+    paint(v, cover(mb + p_.cortex_mm), p_.cancellous_hu);
   }
   paint(v, cover(lower_teeth(p, false)), 1800.0);
   paint(v, cover(lower_teeth(p, true)), 2600.0);

@@ -111,6 +111,51 @@ class Normal {
 
 }  // namespace
 
+// The random anatomy family's ranges (uniform; docs/phantom.md, "Random
+// anatomy"), as offsets from the adult model. Sources: bicondylar width
+// about 90-125 mm in adults (scale 0.88-1.12 of the model's ~100 mm keeps
+// the whole family inside that range); ramus height Co-Go 50-70 mm and body length
+// Go-Me 75-95 mm, side-to-side differences up to ~3 mm in normal adults;
+// gonial angle 115-135 degrees; condylar head 15-25 x 8-10 mm; mandibular
+// body cortex 1.5-3.5 mm at 1200-1800 HU over a 200-500 HU cancellous core;
+// TMJ space 1.5-3 mm; crown sizes +-10 % (tooth-size anthropometry).
+namespace {
+struct Range {
+  double lo, hi;
+};
+constexpr Range kScale{0.88, 1.12};
+constexpr Range kRamusHeightMm{-6, 6}, kRamusSideMm{-1.5, 1.5};
+constexpr Range kBodyLengthMm{-6, 6}, kBodySideMm{-1.5, 1.5};
+constexpr Range kGonialAngleDeg{-7, 7}, kGonialSideDeg{-2, 2};
+constexpr Range kCondyleSizeMm{-2, 2}, kCondyleSideMm{-0.5, 0.5};
+constexpr Range kChinDeviationMm{-1.5, 1.5};
+constexpr Range kCortexMm{1.5, 3.0}, kCorticalHu{1200, 1800}, kCancellousHu{200, 500};
+constexpr Range kJointSpaceMm{1.5, 3.0}, kOcclusalGapMm{1.0, 2.0}, kCrownScale{0.9, 1.1};
+}  // namespace
+
+PhantomParams random_anatomy(std::uint64_t anatomy_seed, PhantomParams base) {
+  std::mt19937_64 rng(anatomy_seed * 104729ULL + 3);
+  auto draw = [&](const Range& r) { return std::uniform_real_distribution<double>(r.lo, r.hi)(rng); };
+  PhantomParams p = base;
+  p.scale = draw(kScale);
+  // Shared shape (both sides) plus a small per-side difference.
+  const double ramus = draw(kRamusHeightMm), body = draw(kBodyLengthMm), gonial = draw(kGonialAngleDeg), condyle = draw(kCondyleSizeMm);
+  for (auto& side : p.side) {
+    side.ramus_height_mm = ramus + draw(kRamusSideMm);
+    side.body_length_mm = body + draw(kBodySideMm);
+    side.gonial_angle_deg = gonial + draw(kGonialSideDeg);
+    side.condyle_size_mm = condyle + draw(kCondyleSideMm);
+  }
+  p.chin_deviation_mm = draw(kChinDeviationMm);
+  p.cortex_mm = draw(kCortexMm);
+  p.cortical_hu = draw(kCorticalHu);
+  p.cancellous_hu = draw(kCancellousHu);
+  p.joint_space_mm = draw(kJointSpaceMm);
+  p.occlusal_gap_mm = draw(kOcclusalGapMm);
+  p.crown_scale = draw(kCrownScale);
+  return p;
+}
+
 Phantom generate(const PhantomParams& params) {
   const PhantomParams& P = params;
   for (int a = 0; a < 3; ++a) {
@@ -130,6 +175,10 @@ Phantom generate(const PhantomParams& params) {
   }
   check(std::abs(P.chin_deviation_mm) <= 15, "chin deviation (|x| <= 15 mm)");
   check(P.scale >= 0.6 && P.scale <= 1.4, "scale (0.6..1.4)");
+  check(P.cortex_mm >= 0.5 && P.cortex_mm <= 5, "cortex_mm (0.5..5 mm)");
+  check(P.cortical_hu >= 600 && P.cortical_hu <= 2500, "cortical_hu (600..2500)");
+  check(P.cancellous_hu >= 0 && P.cancellous_hu <= 900 && P.cancellous_hu < P.cortical_hu, "cancellous_hu (0..900, below cortical_hu)");
+  check(P.crown_scale >= 0.7 && P.crown_scale <= 1.3, "crown_scale (0.7..1.3)");
   check(std::abs(P.yaw_deg) <= 45 && std::abs(P.pitch_deg) <= 45 && std::abs(P.roll_deg) <= 45, "pose (|angle| <= 45 deg)");
 
   const Anatomy anat(P);

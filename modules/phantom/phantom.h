@@ -46,8 +46,22 @@ struct PhantomParams {
   // asymmetries) too: a ramus +4 at scale 0.8 is 3.2 mm longer. Pose, field of view, voxels,
   // blur, noise and metal streaks are the scanner's and do not scale.
   double scale = 1.0;
+  // Bone of the mandible: cortical shell thickness and the two densities
+  // (the adult model: 2 mm, 1600 HU over a 350 HU cancellous core).
+  double cortex_mm = 2.0;
+  double cortical_hu = 1600;
+  double cancellous_hu = 350;
+  // Tooth crowns scaled about their occlusal end (widths and height; 1 = the model's).
+  double crown_scale = 1.0;
   std::uint64_t seed = 1;
 };
+
+// One member of the random anatomy family (docs/phantom.md, "Random
+// anatomy"): `base` with its anatomy drawn from the ranges of adult
+// mandibles, independently per side where anatomy differs between sides,
+// from `anatomy_seed` (the scanner knobs of `base` are kept). The same
+// seed gives the same member.
+PhantomParams random_anatomy(std::uint64_t anatomy_seed, PhantomParams base = {});
 
 struct AsymmetryTruth {
   // The knobs as applied to the anatomy after mirroring (so "left" is the

@@ -1718,13 +1718,22 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
     image.marker_source += " (verified by the atlas)";
     return image;
   }
-  return segment_by_atlas(ct, opt, fit);
+  Result zone = segment_by_atlas(ct, opt, fit);
+  std::size_t both = 0, sum = 0;
+  for (std::size_t i = 0; i < zone.mask.data.size(); ++i) {
+    both += zone.mask.data[i] && image.mask.data[i];
+    sum += zone.mask.data[i] + image.mask.data[i];
+  }
+  zone.image_zone_dice = sum ? 2.0 * static_cast<double>(both) / static_cast<double>(sum) : 0.0;
+  return zone;
 }
 
 static Result segment_auto(const Volume& ct, const Options& opt) {
   GridContext whole;
   // Where the mandible is: the atlas placed in the scan (docs/atlas.md).
+  SegLap lap;
   const atlas::Fit fit = opt.use_atlas ? atlas::fit_ct(ct, opt.bone_threshold_hu) : atlas::Fit{};
+  lap("atlas fit");
   whole.atlas = &fit;
   Result out = fit.found ? segment_by_atlas_and_image(ct, opt, fit, whole) : segment_auto_with(ct, opt, whole);
   out.atlas = fit;
@@ -2015,12 +2024,15 @@ static void end_at_scanned_body(const Volume& ct, Result& r) {
 }
 
 static Result segment_scanned(const Volume& ct, const Options& opt) {
+  SegLap lap;
   Result r = segment_auto(ct, opt);
+  lap("identification and separation");
   if (r.separation_radius_mm > 0) trim_welded_skull_base(ct, r);
   check_width(r);
   r.atlas_agreement = atlas_agreement(r.mask, r.atlas);
   r.scanned_grid = ct.geom;
   end_at_scanned_body(ct, r);
+  lap("skull base, width, agreement, scanned body");
   return r;
 }
 

@@ -72,6 +72,11 @@ struct Result {
   // 2 mm (docs/segmentation.md, "Padding is not scanned").
   Geometry scanned_grid;
   bool cropped = false;    // full-resolution work ran on a crop around the located mandible
+  // Scans up to 2 mm with the atlas placed: Dice between the image
+  // separation's mask and the atlas zone's when the atlas did not verify the
+  // image's and the zone was taken (two independent estimates; docs/qc.md,
+  // separations_agree); -1 when they were not compared.
+  double image_zone_dice = -1;
   double threshold_hu = 0;          // bone threshold used (after calibration offset)
   // HU level at which the mask's outer boundary was placed (after the
   // offset), on scans that resolve the cortex (voxels up to 1.25 mm: the
