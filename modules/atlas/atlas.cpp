@@ -3,6 +3,7 @@
 #include <zlib.h>
 
 #include <Eigen/Geometry>
+#include <omp.h>
 
 #include <algorithm>
 #include <chrono>
@@ -587,10 +588,17 @@ Fit fit_ct(const Volume& ct, double bone_hu) {
   DebugLap lap("MANDISYM_DEBUG_ATLAS", "atlas");
   // The scan and its mirror fitted side by side (the search is mostly serial).
   const ScanMirror s = lr_mirror(ct.geom);
+  // Each fit gets half of the OpenMP threads (two teams of all of them
+  // oversubscribe the cores: 0.70 s against 0.45 s at 512^2 x 300 on 2 cores).
+  const int threads = std::max(1, omp_get_max_threads() / 2);
   auto fit_field = [&](const ScanMirror* flip) {
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(threads);
     Field f = fraction_field(ct, a.grid.spacing, bone_hu, flip);
     blur(f, kFieldBlurMm);
-    return fit(a, f);
+    Fit out = fit(a, f);
+    omp_set_num_threads(before);
+    return out;
   };
   std::future<Fit> of_mirror = std::async(std::launch::async, fit_field, &s);
   const Fit direct = fit_field(nullptr);
