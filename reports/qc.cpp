@@ -39,7 +39,7 @@ constexpr double kMinAgreement = 0.4;
 // CT is about 0.9 (radiotherapy organ-at-risk delineation, e.g. Brouwer et
 // al. 2012, Radiother Oncol 104:326); below 0.85 one of them is wrong and
 // nothing says which. Random phantom anatomy outside the atlas's range
-// (docs/phantom.md): image 0.98 against the truth, zone 0.71-0.72.
+// (docs/phantom.md, member 8): image ~0.98 against the truth, zone 0.72.
 constexpr double kMinSeparationsDice = 0.85;
 
 }  // namespace

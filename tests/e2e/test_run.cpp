@@ -525,9 +525,9 @@ TEST(EndToEnd, ObliquePoseScoresBelowATwoMillimetreRamusDifference) {
 // one adult model fails here: each member is either right (volume within 5 %
 // of the truth, every landmark within 3 mm) or refused by the quality gate
 // (exit 8) — never a confident wrong answer — and most are right. Measured at
-// 1 mm: 6 right (Dice 0.978-0.989, landmarks <= 1.5 mm), members 4 and 8 exit
-// 8 (separations_agree 0.71 / 0.72: their rami reach beyond the atlas's
-// support, docs/segmentation.md).
+// 1 mm: 7 right (volumes within 5 %, landmarks <= 1.5 mm), member 8 exits 8
+// (separations_agree 0.72: its rami reach beyond the atlas's support grown by
+// 5 mm, docs/segmentation.md).
 TEST(EndToEnd, RandomAnatomyFamilyIsRightOrRefused) {
   int right = 0;
   for (int n = 1; n <= 8; ++n) {
@@ -560,7 +560,7 @@ TEST(EndToEnd, RandomAnatomyFamilyIsRightOrRefused) {
     fs::remove_all(ph);
     fs::remove_all(out);
   }
-  EXPECT_GE(right, 6);
+  EXPECT_GE(right, 7);
 }
 
 // A head pitched 20 degrees chin-up in the scanner: the run finds the palatal
