@@ -112,9 +112,10 @@ void write_previews(const phantom::Phantom& ph, const std::string& dir) {
 
 }  // namespace
 
-int phantom_command(const cli::Args& a) {
-  const std::string out = a.get("output");
-  if (out.empty()) throw Error(ExitCode::Usage, "phantom: -o OUTDIR is required");
+namespace {
+
+// The phantom's parameters from the command line (the knobs of phantom.h).
+phantom::PhantomParams params_from(const cli::Args& a) {
   phantom::PhantomParams p;
   p.spacing = a.vec3("spacing", p.spacing);
   p.fov_mm = a.vec3("fov", p.fov_mm);
@@ -150,28 +151,12 @@ int phantom_command(const cli::Args& a) {
     if (n < 0 || n != std::floor(n)) throw Error(ExitCode::Usage, "--random-anatomy: expected a non-negative integer");
     p = phantom::random_anatomy(static_cast<std::uint64_t>(n), p);
   }
+  return p;
+}
 
-  phantom::Phantom ph;
-  const auto t0 = std::chrono::steady_clock::now();
-  try {
-    ph = phantom::generate(p);
-  } catch (const std::invalid_argument& e) {
-    throw Error(ExitCode::Usage, e.what());
-  }
-  const double t_gen = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-
-  const fs::path root(out);
-  std::error_code ec;
-  fs::create_directories(root / "ground_truth", ec);
-  if (ec) throw Error(ExitCode::OutputFailed, out + ": cannot create folder: " + ec.message());
-  fs::remove_all(root / "dicom", ec);
-  io::DicomSeriesSpec spec;
-  spec.compression = a.get("compression", "raw");
-  // Deterministic UIDs for a given seed would collide across phantoms with the
-  // same seed; fresh UIDs are generated per series instead.
-  const std::string uid = io::write_dicom_series(ph.ct, spec, (root / "dicom").string());
-  io::write_mask(ph.mandible, (root / "ground_truth" / "mandible_mask.nii.gz").string());
-
+// ground_truth/: landmarks (JSON and Slicer markup), the true symmetry plane
+// and the imposed asymmetry.
+void write_ground_truth(const phantom::Phantom& ph, const fs::path& root) {
   auto lm = json::Value::object();
   lm["coordinate_system"] = "LPS";
   lm["units"] = "mm";
@@ -191,13 +176,18 @@ int phantom_command(const cli::Args& a) {
   asym["left"] = side_json(ph.truth.side[0]);
   asym["right"] = side_json(ph.truth.side[1]);
   asym["chin_deviation_mm"] = ph.truth.chin_deviation_mm;
-  asym["mirrored"] = p.mirror;
+  asym["mirrored"] = ph.params.mirror;
   asym["measured_on_ground_truth_landmarks"]["ramus_height_mm"]["L"] = ph.truth.ramus_height_L;
   asym["measured_on_ground_truth_landmarks"]["ramus_height_mm"]["R"] = ph.truth.ramus_height_R;
   asym["measured_on_ground_truth_landmarks"]["body_length_mm"]["L"] = ph.truth.body_length_L;
   asym["measured_on_ground_truth_landmarks"]["body_length_mm"]["R"] = ph.truth.body_length_R;
   reports::write_text_atomic((root / "ground_truth" / "asymmetry.json").string(), asym.dump(2) + "\n");
 
+}
+
+// ground_truth/params.json: every parameter the phantom was made with.
+json::Value params_json(const cli::Args& a, const phantom::PhantomParams& p, const phantom::Phantom& ph, const std::string& uid,
+                        const std::string& compression) {
   auto params = json::Value::object();
   params["tool_version"] = version();
   params["series_uid"] = uid;
@@ -222,8 +212,41 @@ int phantom_command(const cli::Args& a) {
   params["crown_scale"] = p.crown_scale;
   if (a.has("random-anatomy")) params["random_anatomy"] = a.number("random-anatomy", 0);
   params["seed"] = static_cast<double>(p.seed);
-  params["compression"] = spec.compression;
+  params["compression"] = compression;
   params["mandible_volume_mm3"] = ph.mandible.count() * ph.mandible.geom.voxel_volume_mm3();
+  return params;
+}
+
+}  // namespace
+
+int phantom_command(const cli::Args& a) {
+  const std::string out = a.get("output");
+  if (out.empty()) throw Error(ExitCode::Usage, "phantom: -o OUTDIR is required");
+  const phantom::PhantomParams p = params_from(a);
+
+  phantom::Phantom ph;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    ph = phantom::generate(p);
+  } catch (const std::invalid_argument& e) {
+    throw Error(ExitCode::Usage, e.what());
+  }
+  const double t_gen = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  const fs::path root(out);
+  std::error_code ec;
+  fs::create_directories(root / "ground_truth", ec);
+  if (ec) throw Error(ExitCode::OutputFailed, out + ": cannot create folder: " + ec.message());
+  fs::remove_all(root / "dicom", ec);
+  io::DicomSeriesSpec spec;
+  spec.compression = a.get("compression", "raw");
+  // Deterministic UIDs for a given seed would collide across phantoms with the
+  // same seed; fresh UIDs are generated per series instead.
+  const std::string uid = io::write_dicom_series(ph.ct, spec, (root / "dicom").string());
+  io::write_mask(ph.mandible, (root / "ground_truth" / "mandible_mask.nii.gz").string());
+
+  write_ground_truth(ph, root);
+  const json::Value params = params_json(a, p, ph, uid, spec.compression);
   reports::write_text_atomic((root / "ground_truth" / "params.json").string(), params.dump(2) + "\n");
 
   if (!a.has("no-preview")) {

@@ -188,14 +188,10 @@ void qc_html(std::ostringstream& h, const RunSummary& s) {
 
 }  // namespace
 
-json::Value results_json(const RunSummary& s) {
+// results.json `input`: the scan as read.
+static json::Value input_json(const RunSummary& s) {
   using json::Value;
-  auto root = Value::object();
-  root["schema_version"] = kSchemaVersion;
-  root["tool"]["name"] = "mandisym";
-  root["tool"]["version"] = s.tool_version;
-
-  auto& in = root["input"];
+  auto in = Value::object();
   in["path"] = s.scan.path;
   in["kind"] = s.scan.kind;
   in["series_uid"] = s.scan.series_uid.empty() ? Value() : Value(s.scan.series_uid);
@@ -208,8 +204,13 @@ json::Value results_json(const RunSummary& s) {
   in["study_date"] = s.scan.study_date.empty() ? Value() : Value(s.scan.study_date);
   in["manufacturer"] = s.scan.manufacturer.empty() ? Value() : Value(s.scan.manufacturer);
   in["kernel"] = s.scan.kernel.empty() ? Value() : Value(s.scan.kernel);
+  return in;
+}
 
-  auto& seg = root["segmentation"];
+// results.json `segmentation`.
+static json::Value segmentation_json(const RunSummary& s) {
+  using json::Value;
+  auto seg = Value::object();
   seg["method"] = s.segmentation_method;
   seg["voxels"] = s.seg_voxels;
   seg["volume_mm3"] = s.seg_volume_mm3;
@@ -221,10 +222,13 @@ json::Value results_json(const RunSummary& s) {
     seg["marker_source"] = s.seg_marker_source.empty() ? Value() : Value(s.seg_marker_source);
     if (s.atlas.ncc >= -1) seg["atlas"] = atlas_json(s);
   }
+  return seg;
+}
 
-  root["qc"] = qc_json(s);
-
-  auto& mesh = root["mesh"];
+// results.json `mesh`.
+static json::Value mesh_json(const RunSummary& s) {
+  using json::Value;
+  auto mesh = Value::object();
   mesh["vertices"] = s.mesh.vertices;
   mesh["faces"] = s.mesh.faces;
   mesh["area_mm2"] = s.mesh.area_mm2;
@@ -236,22 +240,27 @@ json::Value results_json(const RunSummary& s) {
   mesh["closing_scope"] = s.closing_mm <= 0 ? "none" : s.closing_plugs_only ? "handles" : "everywhere";
   mesh["genus_before_closing"] = s.genus_before_closing >= 0 ? Value(s.genus_before_closing) : Value();
   mesh["vertices_pulled_to_mask"] = s.vertices_pulled;
+  return mesh;
+}
 
-  auto& lm = root["landmarks"];
-  lm = Value::object();
-  for (const auto& n : landmark_names()) {
-    const Vec3* p = s.landmarks.landmarks.find(n);
-    lm[n] = p ? vec(*p) : Value();
-  }
-  root["landmark_detection"]["method"] = s.landmarks.method;
-  auto& missing = root["landmark_detection"]["missing"];
+// results.json `landmark_detection`: the method, and each missing landmark with its reason.
+static json::Value landmark_detection_json(const RunSummary& s) {
+  using json::Value;
+  auto d = Value::object();
+  d["method"] = s.landmarks.method;
+  auto& missing = d["missing"];
   missing = Value::array();
   for (const auto& m : s.landmarks.missing) missing.push_back(m);
-  auto& why = root["landmark_detection"]["why_missing"];
+  auto& why = d["why_missing"];
   why = Value::object();
   for (const auto& [name, reason] : s.landmarks.why_missing) why[name] = reason;
+  return d;
+}
 
-  auto& hf = root["head_frame"];
+// results.json `head_frame`: the superior axis used and where it came from.
+static json::Value head_frame_json(const RunSummary& s) {
+  using json::Value;
+  auto hf = Value::object();
   hf["superior"] = vec(s.head_superior());
   hf["source"] = s.head_frame.source == "palatal" ? "palatal plane" : s.head_frame.source == "mandible" ? "mandible atlas" : "scan axes";
   if (s.palate.found) {
@@ -267,6 +276,62 @@ json::Value results_json(const RunSummary& s) {
     hf["palatal_tilt_deg"] = Value();
     hf["reason"] = s.palate.reason;
   }
+  return hf;
+}
+
+// results.json `scores.saf`: the SAF score, its regions and the SRD.
+static json::Value saf_json(const RunSummary& s) {
+  using json::Value;
+  auto saf = Value::object();
+  saf["score"] = num_or_null(s.saf.score, s.saf.score >= 0);
+  saf["unit"] = "rad";
+  saf["per_configuration"] = Value::object();
+  for (const auto& [n, v] : s.saf.per_configuration) saf["per_configuration"][n] = v;
+  saf["regions"] = Value::object();
+  for (const auto& [n, v] : s.saf_regions) saf["regions"][n] = v;
+  saf["regions_sided"] = Value::object();
+  for (const auto& [n, v] : s.saf_regions_sided) saf["regions_sided"][n] = v;
+  saf["regions_lateral"] = Value::object();
+  for (const auto& [n, v] : s.saf_regions_lateral) saf["regions_lateral"][n] = v;
+  if (!s.saf_regions_lateral.empty()) saf["largest_region_sided"] = asymmetry::largest_region(s.saf_regions_lateral);
+  saf["correspondence_free"] = num_or_null(s.saf.correspondence_free, s.saf.correspondence_free >= 0);
+  saf["skipped_configurations"] = Value::array();
+  for (const auto& n : s.saf.skipped) saf["skipped_configurations"].push_back(n);
+  auto& srd = saf["srd"];
+  srd = Value::object();
+  for (const auto& t : s.srd.twins) {
+    auto& e = srd[t.landmark];
+    e["twin"] = t.twin;
+    e["mirror_mismatch_rad"] = num_or_null(t.mirror_mismatch, t.mirror_mismatch >= 0);
+    e["handedness_rad"] = num_or_null(t.handedness, t.handedness >= 0);
+  }
+  return saf;
+}
+
+json::Value results_json(const RunSummary& s) {
+  using json::Value;
+  auto root = Value::object();
+  root["schema_version"] = kSchemaVersion;
+  root["tool"]["name"] = "mandisym";
+  root["tool"]["version"] = s.tool_version;
+
+  root["input"] = input_json(s);
+
+  root["segmentation"] = segmentation_json(s);
+
+  root["qc"] = qc_json(s);
+
+  root["mesh"] = mesh_json(s);
+
+  auto& lm = root["landmarks"];
+  lm = Value::object();
+  for (const auto& n : landmark_names()) {
+    const Vec3* p = s.landmarks.landmarks.find(n);
+    lm[n] = p ? vec(*p) : Value();
+  }
+  root["landmark_detection"] = landmark_detection_json(s);
+
+  root["head_frame"] = head_frame_json(s);
   auto& pl = root["symmetry_plane"];
   pl["point"] = vec(s.reference.plane.point);
   pl["normal"] = vec(s.reference.plane.normal);
@@ -297,29 +362,7 @@ json::Value results_json(const RunSummary& s) {
     av[n]["supero_inferior"] = v[2];
   }
 
-  auto& saf = root["scores"]["saf"];
-  saf["score"] = num_or_null(s.saf.score, s.saf.score >= 0);
-  saf["unit"] = "rad";
-  saf["per_configuration"] = Value::object();
-  for (const auto& [n, v] : s.saf.per_configuration) saf["per_configuration"][n] = v;
-  saf["regions"] = Value::object();
-  for (const auto& [n, v] : s.saf_regions) saf["regions"][n] = v;
-  saf["regions_sided"] = Value::object();
-  for (const auto& [n, v] : s.saf_regions_sided) saf["regions_sided"][n] = v;
-  saf["regions_lateral"] = Value::object();
-  for (const auto& [n, v] : s.saf_regions_lateral) saf["regions_lateral"][n] = v;
-  if (!s.saf_regions_lateral.empty()) saf["largest_region_sided"] = asymmetry::largest_region(s.saf_regions_lateral);
-  saf["correspondence_free"] = num_or_null(s.saf.correspondence_free, s.saf.correspondence_free >= 0);
-  saf["skipped_configurations"] = Value::array();
-  for (const auto& n : s.saf.skipped) saf["skipped_configurations"].push_back(n);
-  auto& srd = saf["srd"];
-  srd = Value::object();
-  for (const auto& t : s.srd.twins) {
-    auto& e = srd[t.landmark];
-    e["twin"] = t.twin;
-    e["mirror_mismatch_rad"] = num_or_null(t.mirror_mismatch, t.mirror_mismatch >= 0);
-    e["handedness_rad"] = num_or_null(t.handedness, t.handedness >= 0);
-  }
+  root["scores"]["saf"] = saf_json(s);
 
   // Interpretation bands of the headline numbers (docs/report.md: thresholds and sources).
   auto& bands = root["interpretation"];

@@ -66,6 +66,16 @@ std::size_t Mask::count() const {
   return n;
 }
 
+double dice(const Mask& a, const Mask& b) {
+  std::size_t inter = 0, na = 0, nb = 0;
+  for (std::size_t i = 0; i < a.data.size() && i < b.data.size(); ++i) {
+    na += a.data[i] != 0;
+    nb += b.data[i] != 0;
+    inter += a.data[i] && b.data[i];
+  }
+  return na + nb ? 2.0 * static_cast<double>(inter) / static_cast<double>(na + nb) : 1.0;
+}
+
 double Plane::signed_distance(const Vec3& p) const { return dot(normal, p - point); }
 
 Vec3 Plane::reflect(const Vec3& p) const { return p - (2.0 * signed_distance(p)) * normal; }

@@ -51,6 +51,9 @@ struct Mask {
   std::size_t count() const;
 };
 
+// Dice overlap 2|a ∩ b| / (|a| + |b|) of two masks on the same grid (1 when both are empty).
+double dice(const Mask& a, const Mask& b);
+
 // Integer label map (e.g. an external segmentation) on a grid.
 struct LabelMap {
   Geometry geom;

@@ -1104,11 +1104,12 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
 
 // Truncation of r.mask on its grid, and its warning (replacing any earlier
 // one: a mask cut from a crop, voted or trimmed is judged again).
+const char* const kTruncatedWarning = "the mandible touches the edge of the scan: it may be truncated";
+
 static void set_truncation(Result& r) {
-  static const std::string kWarning = "the mandible touches the edge of the scan: it may be truncated";
-  r.warnings.erase(std::remove(r.warnings.begin(), r.warnings.end(), kWarning), r.warnings.end());
+  r.warnings.erase(std::remove(r.warnings.begin(), r.warnings.end(), kTruncatedWarning), r.warnings.end());
   r.truncated = touches_border(r.mask);
-  if (r.truncated) r.warnings.push_back(kWarning);
+  if (r.truncated) r.warnings.push_back(kTruncatedWarning);
 }
 
 // Steps 6-7 on the input grid: surface placement, clean-up, truncation.
@@ -1637,13 +1638,36 @@ static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas
   return finalize(ct, opt, region, std::move(mask), std::move(r), /*cortex_resolved=*/false);
 }
 
+// Sums over a mask's voxels, in one pass over its bounding box (the placed
+// fields are read only there; nothing of the grid's size is allocated): the
+// voxels, the placed atlas's mandible probability, and how many lie where
+// `grown` (when given) reads at least 0.5.
+struct MaskSums {
+  double n = 0, p = 0, in_grown = 0;
+};
+
+static MaskSums sums_over(const Mask& m, const atlas::MandiblePrior& prior, const atlas::MandiblePrior* grown) {
+  const Geometry& g = m.geom;
+  const Box b = bounding_box(m.data.data(), g.size, 0);
+  double n = 0, p = 0, in_grown = 0;
+  const long k0 = static_cast<long>(b.lo[2]), k1 = static_cast<long>(b.lo[2] + b.size[2]);
+#pragma omp parallel for schedule(static) reduction(+ : n, p, in_grown)
+  for (long k = k0; k < k1; ++k)
+    for (std::size_t j = b.lo[1]; j < b.lo[1] + b.size[1]; ++j)
+      for (std::size_t i = b.lo[0]; i < b.lo[0] + b.size[0]; ++i) {
+        if (!m.data[g.linear(i, j, static_cast<std::size_t>(k))]) continue;
+        const Vec3 q = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+        n += 1;
+        p += prior.at(q);
+        if (grown) in_grown += grown->at(q) >= 0.5;
+      }
+  return {n, p, in_grown};
+}
+
 // Atlas evidence of a mask: the sum of the placed atlas's mandible
 // probability over its voxels times their volume (mm3).
 static double atlas_evidence_mm3(const Mask& m, const atlas::MandiblePrior& prior) {
-  const std::vector<float> p = prior_at_bone(prior, m.data.data(), m.geom);
-  double e = 0;
-  for (float v : p) e += v;
-  return e * m.geom.voxel_volume_mm3();
+  return sums_over(m, prior, nullptr).p * m.geom.voxel_volume_mm3();
 }
 
 // Soft Dice of the mask with the atlas's mandible probability p:
@@ -1696,16 +1720,10 @@ static const atlas::Atlas& grown_support_atlas() {
 }
 
 static ZoneCheck check_against_zone(const Mask& image, double zone_mm3, const atlas::MandiblePrior& prior, const atlas::Pose& pose) {
-  const std::vector<float> p = prior_at_bone(prior, image.data.data(), image.geom);
-  const std::vector<float> grown = prior_at_bone(atlas::MandiblePrior(grown_support_atlas(), pose), image.data.data(), image.geom);
-  double n = 0, e = 0, supp = 0;
-  for (std::size_t i = 0; i < image.data.size(); ++i) {
-    n += image.data[i];
-    supp += image.data[i] && grown[i] >= 0.5f;
-    e += p[i];
-  }
-  e *= image.geom.voxel_volume_mm3();
-  return {n > 0 ? supp / n : 0.0, zone_mm3 > 0 ? e / zone_mm3 : 0.0};
+  const atlas::MandiblePrior grown(grown_support_atlas(), pose);
+  const MaskSums m = sums_over(image, prior, &grown);
+  const double e = m.p * image.geom.voxel_volume_mm3();
+  return {m.n > 0 ? m.in_grown / m.n : 0.0, zone_mm3 > 0 ? e / zone_mm3 : 0.0};
 }
 
 // Identification by the atlas, separation by the image where it resolves
@@ -1749,12 +1767,7 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
     return image;
   }
   Result zone = segment_by_atlas(ct, opt, fit);
-  std::size_t both = 0, sum = 0;
-  for (std::size_t i = 0; i < zone.mask.data.size(); ++i) {
-    both += zone.mask.data[i] && image.mask.data[i];
-    sum += zone.mask.data[i] + image.mask.data[i];
-  }
-  zone.image_zone_dice = sum ? 2.0 * static_cast<double>(both) / static_cast<double>(sum) : 0.0;
+  zone.image_zone_dice = dice(zone.mask, image.mask);
   return zone;
 }
 
@@ -1822,13 +1835,8 @@ static Result segment_auto_with(const Volume& ct, const Options& opt, GridContex
     std::size_t best = 0;
     double best_overlap = -1;
     for (std::size_t k = 0; k < runs.size(); ++k) {
-      std::size_t both = 0, sum = 0;
-      for (std::size_t i = 0; i < votes.size(); ++i) {
-        both += runs[k].mask.data[i] && consensus.data[i];
-        sum += runs[k].mask.data[i] + consensus.data[i];
-      }
-      const double dice = sum ? 2.0 * static_cast<double>(both) / static_cast<double>(sum) : 0.0;
-      if (dice > best_overlap) best_overlap = dice, best = k;
+      const double d = dice(runs[k].mask, consensus);
+      if (d > best_overlap) best_overlap = d, best = k;
     }
     out = std::move(runs[best]);
     out.mask = std::move(consensus);
@@ -1874,16 +1882,18 @@ static std::vector<std::size_t> body_profile(const Volume& ct, int axis, double 
   return body;
 }
 
+// The grid axis whose direction is nearest to LPS axis `lps` (0 L, 1 P, 2 S).
+static int grid_axis_along(const Geometry& g, int lps) {
+  int best = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(g.direction[3 * lps + a]) > std::abs(g.direction[3 * lps + best])) best = a;
+  return best;
+}
+
 void trim_welded_skull_base(const Volume& ct, Result& r) {
   const Geometry& g = r.mask.geom;
   // Grid axes along the patient's left-right and inferior-superior axes.
-  auto nearest = [&](int row) {
-    int best = 0;
-    for (int a = 1; a < 3; ++a)
-      if (std::abs(g.direction[3 * row + a]) > std::abs(g.direction[3 * row + best])) best = a;
-    return best;
-  };
-  const int lat = nearest(0), ver = nearest(2);
+  const int lat = grid_axis_along(g, 0), ver = grid_axis_along(g, 2);
   if (lat == ver || std::abs(g.direction[lat]) < 0.9 || std::abs(g.direction[6 + ver]) < 0.9) return;
   const Box b = bounding_box(r.mask.data.data(), g.size, 0);
   if (b.size[0] == 0) return;
@@ -2011,9 +2021,7 @@ constexpr double kScannedBodyFraction = 0.25;
 
 static void end_at_scanned_body(const Volume& ct, Result& r) {
   const Geometry& g = r.mask.geom;
-  int ver = 0;
-  for (int a = 1; a < 3; ++a)
-    if (std::abs(g.direction[6 + a]) > std::abs(g.direction[6 + ver])) ver = a;
+  const int ver = grid_axis_along(g, 2);
   const Box b = bounding_box(r.mask.data.data(), g.size, 0);
   if (b.size[0] == 0 || std::abs(g.direction[6 + ver]) < 0.9) return;
   const std::vector<std::size_t> body = body_profile(ct, ver, r.offset_hu);
@@ -2028,12 +2036,9 @@ static void end_at_scanned_body(const Volume& ct, Result& r) {
   while (hi + 1 < g.size[ver] && scanned(hi + 1)) ++hi;
   if (lo == 0 && hi + 1 == g.size[ver]) return;
   Geometry sg = r.scanned_grid;
-  const Vec3 lo_index_lps = [&] {
-    Vec3 q{0, 0, 0};
-    q[ver] = static_cast<double>(lo);
-    return g.index_to_lps(q[0], q[1], q[2]);
-  }();
-  sg.origin = lo_index_lps;
+  Vec3 first{0, 0, 0};  // index of the run's first slice's corner voxel
+  first[ver] = static_cast<double>(lo);
+  sg.origin = g.index_to_lps(first[0], first[1], first[2]);
   sg.size[ver] = hi - lo + 1;
   r.scanned_grid = sg;
   // The mask in an end slice of the run (inside the grid) is cut by the scan.
@@ -2045,8 +2050,7 @@ static void end_at_scanned_body(const Volume& ct, Result& r) {
         cut += r.mask.data[g.linear(i, j, k)] && ((lo > 0 && v[ver] <= lo) || (hi + 1 < g.size[ver] && v[ver] >= hi));
       }
   if (cut == 0) return;
-  static const std::string kWarning = "the mandible touches the edge of the scan: it may be truncated";
-  if (!r.truncated) r.warnings.push_back(kWarning);
+  if (!r.truncated) r.warnings.push_back(kTruncatedWarning);
   r.truncated = true;
   r.warnings.push_back("the scanned body ends at the mandible (its cross-section falls below " +
                        std::to_string(static_cast<int>(kScannedBodyFraction * 100)) +

@@ -54,14 +54,6 @@ OpenKbpCase load_openkbp(const std::string& dir) {
   return c;
 }
 
-double dice(const Mask& a, const Mask& b) {
-  std::size_t inter = 0, na = 0, nb = 0;
-  for (std::size_t i = 0; i < a.data.size() && i < b.data.size(); ++i) {
-    na += a.data[i] != 0;
-    nb += b.data[i] != 0;
-    inter += a.data[i] && b.data[i];
-  }
-  return na + nb ? 2.0 * inter / (na + nb) : 1.0;
-}
+double dice(const Mask& a, const Mask& b) { return ms::dice(a, b); }
 
 }  // namespace ms::testing
