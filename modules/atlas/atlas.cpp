@@ -395,11 +395,28 @@ float Field::at(const Vec3& p) const {
   const double q[3] = {(p[0] - grid.origin[0]) / grid.spacing, (p[1] - grid.origin[1]) / grid.spacing, (p[2] - grid.origin[2]) / grid.spacing};
   int i0[3];
   double w[3];
+  bool interior = true;  // all 8 corners inside the grid
   for (int a = 0; a < 3; ++a) {
     if (!(q[a] >= 0) || q[a] > grid.n[a] - 1) return kNaN;
     i0[a] = std::min(static_cast<int>(q[a]), std::max(0, grid.n[a] - 2));
     w[a] = grid.n[a] > 1 ? q[a] - i0[a] : 0.0;
+    interior = interior && i0[a] + 1 < grid.n[a];
   }
+  if (interior) {  // the common case, without per-corner clamps; NaN corners below
+    const std::size_t sx = 1, sy = static_cast<std::size_t>(grid.n[0]), sz = sy * static_cast<std::size_t>(grid.n[1]);
+    const float* c = v.data() + grid.linear(i0[0], i0[1], i0[2]);
+    const float c000 = c[0], c100 = c[sx], c010 = c[sy], c110 = c[sx + sy], c001 = c[sz], c101 = c[sx + sz], c011 = c[sy + sz],
+                c111 = c[sx + sy + sz];
+    if (!std::isnan(c000 + c100 + c010 + c110 + c001 + c101 + c011 + c111)) {
+      // The same sum, in the same order, as the general case below.
+      const double u[2] = {1 - w[0], w[0]}, vy[2] = {1 - w[1], w[1]}, vz[2] = {1 - w[2], w[2]};
+      const float x[8] = {c000, c100, c010, c110, c001, c101, c011, c111};
+      double acc = 0;
+      for (int k = 0; k < 8; ++k) acc += u[k & 1] * vy[(k >> 1) & 1] * vz[(k >> 2) & 1] * x[k];
+      return static_cast<float>(acc);
+    }
+  }
+  // Corners of zero weight do not count (an unknown voxel there is no neighbour).
   double acc = 0;
   for (int c = 0; c < 8; ++c) {
     const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;

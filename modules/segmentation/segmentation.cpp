@@ -2,10 +2,8 @@
 #include "segmentation/segmentation.h"
 #include "segmentation/atlas_zone.h"
 
-#include <itkConnectedComponentImageFilter.h>
 #include <itkImage.h>
 #include <itkRegionOfInterestImageFilter.h>
-#include <itkRelabelComponentImageFilter.h>
 
 #include <algorithm>
 #include <map>
@@ -17,6 +15,7 @@
 #include <set>
 
 #include "atlas/atlas.h"
+#include "core/components.h"
 #include "core/distance_transform.h"
 #include "core/debug_lap.h"
 #include "core/error.h"
@@ -241,6 +240,21 @@ typename ImageT::Pointer crop(const ImageT* img, const typename ImageT::RegionTy
   return roi->GetOutput();
 }
 
+// Connected components of a mask as a label image (core/components.h: ITK's
+// connected components and relabelling, by decreasing size, components under
+// min_voxels dropped). *count: the number of labels.
+LabelImage::Pointer components(const MaskImage* m, bool fully_connected, std::size_t min_voxels, std::size_t* count) {
+  auto out = LabelImage::New();
+  out->CopyInformation(m);
+  out->SetRegions(m->GetLargestPossibleRegion());
+  out->Allocate();
+  const auto size = m->GetLargestPossibleRegion().GetSize();
+  *count = label_components(m->GetBufferPointer(), Dims3{size[0], size[1], size[2]}, fully_connected, min_voxels,
+                            out->GetBufferPointer())
+               .count;
+  return out;
+}
+
 // The mask with its enclosed cavities filled: background components
 // (face-connected, or face+edge+vertex when fully_connected) that do not
 // reach a face of the grid. What ITK's BinaryFillholeImageFilter does, without
@@ -256,12 +270,10 @@ MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
   const auto* m = in->GetBufferPointer();
   auto* bg = background->GetBufferPointer();
   for (std::size_t i = 0; i < n; ++i) bg[i] = !m[i];
-  auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-  cc->SetInput(background);
-  cc->SetFullyConnected(fully_connected);
-  cc->Update();
-  const auto* lab = cc->GetOutput()->GetBufferPointer();
-  std::vector<std::uint8_t> open(cc->GetObjectCount() + 1, 0);  // reaches a face
+  std::size_t n_background = 0;
+  const LabelImage::Pointer labels = components(background.GetPointer(), fully_connected, 0, &n_background);
+  const auto* lab = labels->GetBufferPointer();
+  std::vector<std::uint8_t> open(n_background + 1, 0);  // reaches a face
   for (std::size_t k = 0; k < d[2]; ++k)
     for (std::size_t j = 0; j < d[1]; ++j) {
       const bool face = k == 0 || j == 0 || k + 1 == d[2] || j + 1 == d[1];
@@ -350,12 +362,14 @@ Box bounding_box(const std::uint8_t* m, const Dims3& dims, std::size_t pad) {
   for (std::size_t k = 0; k < dims[2]; ++k)
     for (std::size_t j = 0; j < dims[1]; ++j) {
       const std::uint8_t* row = m + dims[0] * (j + dims[1] * k);
-      for (std::size_t i = 0; i < dims[0]; ++i)
-        if (row[i]) {
-          const std::size_t v[3] = {i, j, k};
-          for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], v[a]), hi[a] = std::max(hi[a], v[a]);
-          any = true;
-        }
+      const std::uint8_t* first = std::find_if(row, row + dims[0], [](std::uint8_t x) { return x != 0; });
+      if (first == row + dims[0]) continue;
+      std::size_t last = dims[0] - 1;
+      while (!row[last]) --last;
+      lo[0] = std::min(lo[0], static_cast<std::size_t>(first - row)), hi[0] = std::max(hi[0], last);
+      lo[1] = std::min(lo[1], j), hi[1] = std::max(hi[1], j);
+      lo[2] = std::min(lo[2], k), hi[2] = std::max(hi[2], k);
+      any = true;
     }
   Box b;
   if (!any) return b;
@@ -781,30 +795,23 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     auto core = io::make_image<MaskImage>(cg);
     auto* c = core->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = d[i] > depth;
-    auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-    cc->SetInput(core);
-    cc->FullyConnectedOff();
-    auto relabel = itk::RelabelComponentImageFilter<LabelImage, LabelImage>::New();
-    relabel->SetInput(cc->GetOutput());
-    relabel->SetMinimumObjectSize(static_cast<itk::SizeValueType>(std::max(8.0, 100.0 / voxel_mm3)));
-    relabel->Update();
-    *n_out = static_cast<unsigned>(relabel->GetNumberOfObjects());
-    *f_out = component_features(relabel->GetOutput(), *n_out, cg);
+    std::size_t n_cores = 0;
+    LabelImage::Pointer out = components(core.GetPointer(), false, static_cast<std::size_t>(std::max(8.0, 100.0 / voxel_mm3)), &n_cores);
+    *n_out = static_cast<unsigned>(n_cores);
+    *f_out = component_features(out.GetPointer(), *n_out, cg);
     if (by_atlas) {
-      const auto* lab = relabel->GetOutput()->GetBufferPointer();
+      const auto* lab = out->GetBufferPointer();
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
         if (lab[i]) (*f_out)[lab[i]].prior_sum += prior[i];
     }
     if (!in_located.empty()) {
       std::vector<std::size_t> inside(*n_out + 1, 0);
-      const auto* lab = relabel->GetOutput()->GetBufferPointer();
+      const auto* lab = out->GetBufferPointer();
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
         if (lab[i]) inside[lab[i]] += in_located[i];
       for (unsigned l = 1; l <= *n_out; ++l)
         (*f_out)[l].located = (*f_out)[l].voxels ? static_cast<double>(inside[l]) / static_cast<double>((*f_out)[l].voxels) : 0.0;
     }
-    LabelImage::Pointer out = relabel->GetOutput();
-    out->DisconnectPipeline();
     return out;
   };
   LabelImage::Pointer markers;
@@ -827,18 +834,16 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     auto cavity = io::make_image<MaskImage>(cg);
     const auto* filled = dense_filled->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) cavity->GetBufferPointer()[i] = filled[i] && !dn[i];
-    auto ccav = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-    ccav->SetInput(cavity);
-    ccav->FullyConnectedOff();
-    ccav->Update();
+    std::size_t n_cavities = 0;
+    const LabelImage::Pointer cavities = components(cavity.GetPointer(), false, 0, &n_cavities);
     // Only whether a cavity reaches `thick` deep matters: its depth map
     // needs to be exact no deeper (the transform then looks that far only).
     const float thick = static_cast<float>(std::max(1.0, 0.75 * max_spacing));
     const std::vector<float> cdepth =
         depth_inside(cavity->GetBufferPointer(), cdims, cg.spacing, thick + static_cast<float>(max_spacing));
-    const auto* cl = ccav->GetOutput()->GetBufferPointer();
+    const auto* cl = cavities->GetBufferPointer();
     const float* cd = cdepth.data();
-    std::vector<float> depth(ccav->GetObjectCount() + 1, 0.0f);
+    std::vector<float> depth(n_cavities + 1, 0.0f);
     for (std::size_t i = 0; i < cg.voxel_count(); ++i)
       if (cl[i]) depth[cl[i]] = std::max(depth[cl[i]], cd[i]);
     dense_solid = io::make_image<MaskImage>(cg);
@@ -954,19 +959,16 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     r.warnings.push_back("mandible not separated from the other bones: no bone core has a mandible's size; "
                          "the result may include skull or spine");
     // Fall back to the widest, lowest bone component of the undivided mask.
-    auto cc2 = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-    cc2->SetInput(bone);
-    auto rl2 = itk::RelabelComponentImageFilter<LabelImage, LabelImage>::New();
-    rl2->SetInput(cc2->GetOutput());
-    rl2->SetMinimumObjectSize(static_cast<itk::SizeValueType>(opt.min_component_cm3 * 1000.0 / voxel_mm3));
-    rl2->Update();
-    const unsigned n2 = static_cast<unsigned>(rl2->GetNumberOfObjects());
+    std::size_t n_bones = 0;
+    const LabelImage::Pointer bones =
+        components(bone.GetPointer(), false, static_cast<std::size_t>(opt.min_component_cm3 * 1000.0 / voxel_mm3), &n_bones);
+    const unsigned n2 = static_cast<unsigned>(n_bones);
     if (n2 == 0)
       throw Error(ExitCode::NoMandible, "no mandible found: no bone (no connected region above " +
                                             std::to_string(static_cast<int>(threshold)) + " HU of at least " +
                                             std::to_string(static_cast<int>(std::lround(opt.min_component_cm3))) + " cm3)");
-    auto f2 = component_features(rl2->GetOutput(), n2, cg);
-    const auto* lab = rl2->GetOutput()->GetBufferPointer();
+    auto f2 = component_features(bones.GetPointer(), n2, cg);
+    const auto* lab = bones->GetBufferPointer();
     unsigned best = 0;
     for (unsigned l = 1; l <= n2; ++l)
       if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
@@ -1074,11 +1076,10 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     auto cand = io::make_image<MaskImage>(cg);
     auto* cm = cand->GetBufferPointer();
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) cm[i] = rm[i] && (nd2[i] <= band2 || (fine_scan && thick[i] && nd2[i] <= reach2));
-    auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-    cc->SetInput(cand);
-    cc->Update();
-    const auto* cl = cc->GetOutput()->GetBufferPointer();
-    std::vector<bool> attached(cc->GetObjectCount() + 1, false);
+    std::size_t n_parts = 0;
+    const LabelImage::Pointer parts = components(cand.GetPointer(), false, 0, &n_parts);
+    const auto* cl = parts->GetBufferPointer();
+    std::vector<bool> attached(n_parts + 1, false);
     for (std::size_t i = 0; i < cg.voxel_count(); ++i)
       if (cl[i] && nd2[i] <= band2) attached[cl[i]] = true;
     for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = cl[i] && attached[cl[i]];
@@ -2137,11 +2138,10 @@ Result from_label_map(const Geometry& ct, const LabelMap& lm, int label, const s
   // Components (6-connected) of the selected label.
   auto img = io::make_image<MaskImage>(ct);
   std::copy(r.mask.data.begin(), r.mask.data.end(), img->GetBufferPointer());
-  auto cc = itk::ConnectedComponentImageFilter<MaskImage, LabelImage>::New();
-  cc->SetInput(img);
-  cc->Update();
-  if (cc->GetObjectCount() > 1)
-    r.warnings.push_back(source + ": the mandible label has " + std::to_string(cc->GetObjectCount()) +
+  std::size_t n_parts = 0;
+  components(img.GetPointer(), false, 0, &n_parts);
+  if (n_parts > 1)
+    r.warnings.push_back(source + ": the mandible label has " + std::to_string(n_parts) +
                          " separate parts (kept all; fracture or segmentation gaps?)");
   set_truncation(r);
   return r;
