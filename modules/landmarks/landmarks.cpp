@@ -686,8 +686,8 @@ Result detect_in_head_frame(const Volume& ct, const Mesh& mesh, Options options,
   options.superior = hf.superior;
   std::vector<std::string> notes;
   if (hf.source == "palatal" && pp.floor != "air")
-    notes.push_back("landmarks: the palatal plane was fitted to a nasal floor under soft tissue (no air in the nasal "
-                    "cavity): check it on qc_head_frame.png");
+    notes.push_back("landmarks: the palatal plane was fitted to a nasal floor mostly under soft tissue (mucosa or "
+                    "secretions rather than air above it): check it on qc_head_frame.png");
   if (hf.source == "mandible")
     notes.push_back("landmarks: palatal plane not used (" + hf.why +
                     "): 'superior' is the head's axis given by the mandible atlas's pose (within ~15 degrees)");

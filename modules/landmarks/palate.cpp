@@ -79,13 +79,16 @@ PalatalPlane fit_floor(const std::vector<Candidate>& cand, int profiles, const V
     best.h0 = (sh - best.slope * sa) / m;
   }
   double ss = 0, a0 = kInf, a1 = -kInf;
+  std::size_t under_air = 0;
   for (const Candidate* c : in) {
     const double e = c->h - best.at(c->a, a_ref);
+    under_air += c->air;
     ss += e * e;
     a0 = std::min(a0, c->a);
     a1 = std::max(a1, c->a);
   }
   r.samples = in.size();
+  r.floor = 2 * under_air >= in.size() ? "air" : "soft tissue";  // what most of the floor has above it
   r.rms_mm = in.empty() ? 0.0 : std::sqrt(ss / static_cast<double>(in.size()));
   r.length_mm = in.empty() ? 0.0 : a1 - a0;
   r.tilt_deg = std::atan(best.slope) * 180.0 / M_PI;
@@ -201,22 +204,20 @@ PalatalPlane find_palatal_plane(const Volume& ct, const Mesh& mandible, const Pl
         cand.push_back({a, h_lo + (static_cast<double>(j) + std::clamp(t, 0.0, 1.0)) * step, profile, is_air});
       }
     }
-  // A patent nasal airway first (air above the floor is specific to it);
-  // when the nasal cavity is filled (mucosa, secretions, low resolution
-  // blending the septum), bone tops under soft tissue as well.
+  // The nasal floor is the longest straight bone top above the teeth with
+  // air or mucosa above it: the line through the most candidates of either
+  // kind. Candidates with air above alone (a patent airway) find the same
+  // line with fewer samples, or, when mucosa or secretions cover the floor, a
+  // turbinate's or a sinus's edge higher up (Visible Human female: 48 samples
+  // 30 mm above the floor at 25 degrees, against 262 on the floor); the line
+  // with more support is kept, the air one on a tie.
   const double a_ref = 0.5 * (a_lo + a_hi);
   std::vector<Candidate> air;
   for (const Candidate& c : cand)
     if (c.air) air.push_back(c);
-  r = fit_floor(air, profile, o, e_ap, e_si, a_ref, h_incisal, opt);
-  r.floor = "air";
-  if (!r.found) {
-    PalatalPlane soft = fit_floor(cand, profile, o, e_ap, e_si, a_ref, h_incisal, opt);
-    if (soft.found) {
-      r = soft;
-      r.floor = "soft tissue";
-    }
-  }
+  const PalatalPlane by_air = fit_floor(air, profile, o, e_ap, e_si, a_ref, h_incisal, opt);
+  const PalatalPlane by_all = fit_floor(cand, profile, o, e_ap, e_si, a_ref, h_incisal, opt);
+  r = by_all.found && (!by_air.found || by_all.samples > by_air.samples) ? by_all : by_air;
   return r;
 }
 

@@ -12,12 +12,12 @@
 // Found from the CT alone, beside the mandible (docs/landmarks.md):
 // para-sagittal intensity profiles 4-8 mm either side of the mandible's
 // symmetry plane, from above the incisors to above the rami; on each, every
-// top of a bone run with air above it (a closed cavity) is a nasal-floor
-// candidate; the line (in the sagittal plane) through the most candidates
-// within +-1.5 mm is found by an exhaustive slope/offset search, then refined
-// by least squares. Only when that finds no palate (a nasal cavity filled
-// with mucosa), bone tops under soft tissue are used as well (floor =
-// "soft tissue").
+// top of a bone run with air (a closed cavity) or soft tissue above it is a
+// nasal-floor candidate; the line (in the sagittal plane) through the most
+// candidates within +-1.5 mm is found by an exhaustive slope/offset search,
+// then refined by least squares. It is searched on the air candidates alone
+// and on all of them, and the better supported line is kept (mucosa over the
+// floor leaves the air candidates only a turbinate's edge higher up).
 #pragma once
 
 #include <cstddef>
