@@ -66,6 +66,17 @@ constexpr double kSecondBoneFraction = 0.2;
 
 // Depth (mm) at which the watershed landscape's depth term saturates.
 constexpr float kLandscapeDepthMm = 4.0f;
+// HU above soft tissue at which its brightness term saturates (enamel, dense cortex).
+constexpr float kLandscapeHuSpan = 2600.0f;
+
+// The watershed landscape at a bone voxel: deep and bright flood first, so
+// boundaries settle on geometric necks (cusp contacts) and in intensity
+// valleys (occlusal gap, joint space). Depth (mm, capped) and HU above the
+// calibrated soft tissue hu0 (capped) each contribute down to -1: levels lie
+// in [-2, 0].
+inline float landscape_level(float depth_mm, float hu, float hu0) {
+  return -std::min(depth_mm, kLandscapeDepthMm) / kLandscapeDepthMm - std::clamp(hu - hu0, 0.0f, kLandscapeHuSpan) / kLandscapeHuSpan;
+}
 // Longest path through bone (mm) the crowns-by-their-roots partition follows:
 // a molar's root and crown together are ~20 mm.
 constexpr double kRootReachMm = 25.0;
@@ -979,18 +990,13 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     // Watershed from all markers on -distance: boundaries settle on the necks.
     std::vector<float> landscape(cg.voxel_count());
     {
-      // Flood deep and bright first: boundaries settle on geometric necks
-      // (cusp contacts) and in intensity valleys (occlusal gap, joint space).
-      // Levels lie in [-2, 0]: depth (capped at 4 mm) and HU above soft
-      // tissue (capped at 2600 HU) each contribute down to -1.
+      // Flood deep and bright first (landscape_level).
       if (bone_depth.empty()) bone_depth = depth_inside(bone->GetBufferPointer(), cdims, cg.spacing, depth_cap);
       const auto* b = bone->GetBufferPointer();
       const float hu0 = static_cast<float>(offset);
 #pragma omp parallel for schedule(static)
       for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        landscape[i] = b[i] ? -std::min(bone_depth[i], kLandscapeDepthMm) / kLandscapeDepthMm -
-                                  std::clamp(hu_crop[i] - hu0, 0.0f, 2600.0f) / 2600.0f
-                            : 0.0f;
+        landscape[i] = b[i] ? landscape_level(bone_depth[i], hu_crop[i], hu0) : 0.0f;
     }
     // Markers from the dense-bone solid flood it first, then the rest of the
     // bone: a joint space bridged by partial volume (above the bone threshold,
@@ -1637,7 +1643,7 @@ static std::vector<std::uint8_t> zone_cut_by_watershed(const std::vector<std::ui
   const float hu0 = static_cast<float>(offset_hu);
   for (std::size_t i = 0; i < bone.size(); ++i) {
     if (!bone[i]) continue;
-    level[i] = -std::min(depth[i], kLandscapeDepthMm) / kLandscapeDepthMm - std::clamp(hu[i] - hu0, 0.0f, 2600.0f) / 2600.0f;
+    level[i] = landscape_level(depth[i], hu[i], hu0);
     markers[i] = p[i] >= kZoneMarkerP ? 1u : p[i] < kAtlasSupportP ? 2u : 0u;
   }
   const Landscape land(level, cg, -2.0f, 0.0f);
