@@ -699,22 +699,81 @@ static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::P
   return moved;
 }
 
-static Separated separate(const Volume& ct, const Options& opt, const GridContext& ctx) {
-  Separated out;
-  Result& r = out.info;
-  SegLap lap;
-  const Geometry& g = ct.geom;
-  const double native_max_spacing = ctx.native_max_spacing;
-  r.method = "auto";
-  std::size_t soft = 0;
-  const double offset = std::isnan(ctx.offset_hu) ? estimate_offset(ct, &soft) : ctx.offset_hu;
-  if (std::abs(offset) > 50)
-    r.warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(kSoftTissueHu + offset))) +
-                         " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
-                         " HU (calibration offset?)");
-  const double threshold = opt.bone_threshold_hu + offset;
+// The separation's watershed landscape (step 5): landscape_level at every
+// bone voxel, 0 elsewhere.
+static Landscape separation_landscape(const std::uint8_t* bone, const std::vector<float>& bone_depth, const std::vector<float>& hu_crop,
+                                      double offset_hu, const Geometry& cg) {
+  std::vector<float> landscape(cg.voxel_count());
+  const float hu0 = static_cast<float>(offset_hu);
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i) landscape[i] = bone[i] ? landscape_level(bone_depth[i], hu_crop[i], hu0) : 0.0f;
+  return Landscape(landscape, cg, -2.0f, 0.0f);
+}
 
-  // Bone mask and its bounding box (work is done on the crop).
+// The regions of the markers (step 5), flooded through bone. With the dense
+// solid given (markers cut from it), they flood the dense bone first, then
+// the rest of the bone: a joint space bridged by partial volume (above the
+// bone threshold, below the dense one) must not let the skull's flood into
+// the condyle before the mandible's own reaches it through the condylar
+// process (it did: 0.8 mm, 1 mm joint space, the condylar processes went to
+// the skull).
+static std::vector<unsigned> flood_regions(const Landscape& land, const std::uint8_t* bone, const std::uint8_t* dense_solid,
+                                           const unsigned* markers) {
+  if (!dense_solid) return watershed_from_markers(land, bone, markers);
+  std::vector<std::uint8_t> dense_bone(land.bucket.size());
+  for (std::size_t i = 0; i < dense_bone.size(); ++i) dense_bone[i] = bone[i] && dense_solid[i];
+  const std::vector<unsigned> first = watershed_from_markers(land, dense_bone.data(), markers);
+  return watershed_from_markers(land, bone, first.data());
+}
+
+// The dense-bone solid of separate() (step 3): bone at or above dense_hu
+// (cortex and enamel), with its thick enclosed cavities (cancellous cores)
+// filled. A bone cut by the scan's edge (scan_edge faces) is closed there
+// first. A thin enclosed cavity is a joint space or an occlusal gap wrapped
+// by bone: filling it would weld the condyle to its fossa, the lower teeth to
+// the upper, so only cavities reaching max(1 mm, 0.75 voxel) deep are filled.
+static MaskImage::Pointer dense_solid_of(const MaskImage* bone, const std::vector<float>& hu_crop, double dense_hu, unsigned scan_edge,
+                                         double max_spacing, const Geometry& cg) {
+  auto dense = io::make_image<MaskImage>(cg);
+  auto* dn = dense->GetBufferPointer();
+  const auto* b = bone->GetBufferPointer();
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i) dn[i] = b[i] && hu_crop[i] >= dense_hu;
+  const std::vector<std::size_t> lid = cap_cut_faces(dn, cg.size, scan_edge, false, b);
+  const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false);  // a thin shell must not leak diagonally
+  for (std::size_t i : lid) dn[i] = 0;
+  auto cavity = io::make_image<MaskImage>(cg);
+  const auto* fill = dense_filled->GetBufferPointer();
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i) cavity->GetBufferPointer()[i] = fill[i] && !dn[i];
+  std::size_t n_cavities = 0;
+  const LabelImage::Pointer cavities = components(cavity.GetPointer(), false, 0, &n_cavities);
+  // Only whether a cavity reaches `thick` deep matters: its depth map
+  // needs to be exact no deeper (the transform then looks that far only).
+  const float thick = static_cast<float>(std::max(1.0, 0.75 * max_spacing));
+  const std::vector<float> cdepth = depth_inside(cavity->GetBufferPointer(), cg.size, cg.spacing, thick + static_cast<float>(max_spacing));
+  const auto* cl = cavities->GetBufferPointer();
+  std::vector<float> depth(n_cavities + 1, 0.0f);
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+    if (cl[i]) depth[cl[i]] = std::max(depth[cl[i]], cdepth[i]);
+  auto solid = io::make_image<MaskImage>(cg);
+  auto* ds = solid->GetBufferPointer();
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i) ds[i] = dn[i] || (cl[i] && depth[cl[i]] >= thick);
+  return solid;
+}
+
+// The bone crop of separate() (step 2): the bone mask at `threshold`, cropped
+// to its bounding box grown by 2 voxels, enclosed cavities filled; which of
+// the crop's faces lie on cut faces of the grid (ctx.cut) and which on the
+// scan's own edge (cap_cut_faces).
+struct BoneCrop {
+  MaskImage::Pointer bone;
+  MaskImage::RegionType region;
+  Geometry cg;
+  std::array<bool, 6> cut{};
+  unsigned scan_edge = 0;
+};
+
+static BoneCrop bone_crop(const Volume& ct, double threshold, const GridContext& ctx) {
+  const Geometry& g = ct.geom;
   auto full = io::make_image<MaskImage>(g);
   std::array<long, 3> lo{long(g.size[0]), long(g.size[1]), long(g.size[2])}, hi{-1, -1, -1};
   {
@@ -731,27 +790,72 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   }
   if (hi[0] < 0) throw Error(ExitCode::NoMandible, "no mandible found: no voxel reaches the bone threshold (" +
                                                         std::to_string(static_cast<int>(threshold)) + " HU)");
-  MaskImage::RegionType region;
+  BoneCrop out;
   for (int a = 0; a < 3; ++a) {
     const long l = std::max(0L, lo[a] - 2), h = std::min(long(g.size[a]) - 1, hi[a] + 2);
-    region.SetIndex(a, l);
-    region.SetSize(a, static_cast<itk::SizeValueType>(h - l + 1));
+    out.region.SetIndex(a, l);
+    out.region.SetSize(a, static_cast<itk::SizeValueType>(h - l + 1));
   }
-  MaskImage::Pointer bone = crop<MaskImage>(full.GetPointer(), region);
+  out.bone = crop<MaskImage>(full.GetPointer(), out.region);
   full = nullptr;
-  const Geometry cg = io::geometry_of(bone.GetPointer());
-  std::array<bool, 6> crop_cut{};  // faces of the bone crop on cut faces of the grid
+  out.cg = io::geometry_of(out.bone.GetPointer());
+  const auto& region = out.region;
   for (int a = 0; a < 3; ++a) {
-    crop_cut[2 * a] = ctx.cut[2 * a] && region.GetIndex()[a] == 0;
-    crop_cut[2 * a + 1] = ctx.cut[2 * a + 1] && region.GetIndex()[a] + static_cast<long>(region.GetSize()[a]) == long(g.size[a]);
+    const bool at_low = region.GetIndex()[a] == 0;
+    const bool at_high = region.GetIndex()[a] + static_cast<long>(region.GetSize()[a]) == long(g.size[a]);
+    out.cut[2 * a] = ctx.cut[2 * a] && at_low;
+    out.cut[2 * a + 1] = ctx.cut[2 * a + 1] && at_high;
+    if (at_low && !ctx.cut[2 * a]) out.scan_edge |= 1u << (2 * a);
+    if (at_high && !ctx.cut[2 * a + 1]) out.scan_edge |= 1u << (2 * a + 1);
   }
-  unsigned scan_edge = 0;  // faces of the bone crop on the scan's edge (cap_cut_faces)
-  for (int a = 0; a < 3; ++a) {
-    if (region.GetIndex()[a] == 0 && !ctx.cut[2 * a]) scan_edge |= 1u << (2 * a);
-    if (region.GetIndex()[a] + static_cast<long>(region.GetSize()[a]) == long(g.size[a]) && !ctx.cut[2 * a + 1])
-      scan_edge |= 1u << (2 * a + 1);
-  }
-  bone = filled(bone.GetPointer(), true);
+  out.bone = filled(out.bone.GetPointer(), true);
+  return out;
+}
+
+// Voxels of the crop cg inside the located region (nearest coarse voxel);
+// empty when the scan was not located first.
+static std::vector<std::uint8_t> located_voxels(const GridContext& ctx, const Geometry& cg) {
+  std::vector<std::uint8_t> in_located;
+  if (!ctx.located) return in_located;
+  in_located.assign(cg.voxel_count(), 0);
+  // Crop index -> located-grid index is affine: its origin and one step per axis.
+  const Mask& loc = *ctx.located;
+  auto to_loc = [&](double i, double j, double k) { return loc.geom.lps_to_index(cg.index_to_lps(i, j, k)); };
+  const Vec3 q0 = to_loc(0, 0, 0);
+  const Vec3 qi = to_loc(1, 0, 0) - q0, qj = to_loc(0, 1, 0) - q0, qk = to_loc(0, 0, 1) - q0;
+  const long nz = static_cast<long>(cg.size[2]);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < cg.size[1]; ++j) {
+      const Vec3 row = q0 + static_cast<double>(j) * qj + static_cast<double>(k) * qk;
+      for (std::size_t i = 0; i < cg.size[0]; ++i)
+        in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = set_at_index(loc, row + static_cast<double>(i) * qi);
+    }
+  return in_located;
+}
+
+static Separated separate(const Volume& ct, const Options& opt, const GridContext& ctx) {
+  Separated out;
+  Result& r = out.info;
+  SegLap lap;
+  const Geometry& g = ct.geom;
+  const double native_max_spacing = ctx.native_max_spacing;
+  r.method = "auto";
+  std::size_t soft = 0;
+  const double offset = std::isnan(ctx.offset_hu) ? estimate_offset(ct, &soft) : ctx.offset_hu;
+  if (std::abs(offset) > 50)
+    r.warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(kSoftTissueHu + offset))) +
+                         " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
+                         " HU (calibration offset?)");
+  const double threshold = opt.bone_threshold_hu + offset;
+
+  // Bone mask, cropped to its bounding box, cavities filled (work is done on the crop).
+  BoneCrop crop_of_bone = bone_crop(ct, threshold, ctx);
+  MaskImage::Pointer bone = std::move(crop_of_bone.bone);
+  const MaskImage::RegionType region = crop_of_bone.region;
+  const Geometry cg = crop_of_bone.cg;
+  const std::array<bool, 6> crop_cut = crop_of_bone.cut;  // faces of the bone crop on cut faces of the grid
+  const unsigned scan_edge = crop_of_bone.scan_edge;     // faces of the bone crop on the scan's edge (cap_cut_faces)
   lap("bone mask, crop, fill");
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
@@ -767,25 +871,8 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   // Depth inside a solid (mm), computed once per solid and thresholded at
   // each tried core depth.
   const Dims3 cdims = cg.size;
-  // Voxels of the crop inside the located region (nearest coarse voxel).
-  std::vector<std::uint8_t> in_located;
+  const std::vector<std::uint8_t> in_located = located_voxels(ctx, cg);
   const double min_located = ctx.located ? 1.0 - opt.locate_outside_fraction : 0.0;
-  if (ctx.located) {
-    in_located.assign(cg.voxel_count(), 0);
-    // Crop index -> located-grid index is affine: its origin and one step per axis.
-    const Mask& loc = *ctx.located;
-    auto to_loc = [&](double i, double j, double k) { return loc.geom.lps_to_index(cg.index_to_lps(i, j, k)); };
-    const Vec3 q0 = to_loc(0, 0, 0);
-    const Vec3 qi = to_loc(1, 0, 0) - q0, qj = to_loc(0, 1, 0) - q0, qk = to_loc(0, 0, 1) - q0;
-    const long nz = static_cast<long>(cdims[2]);
-#pragma omp parallel for schedule(static)
-    for (long k = 0; k < nz; ++k)
-      for (std::size_t j = 0; j < cdims[1]; ++j) {
-        const Vec3 row = q0 + static_cast<double>(j) * qj + static_cast<double>(k) * qk;
-        for (std::size_t i = 0; i < cdims[0]; ++i)
-          in_located[cg.linear(i, j, static_cast<std::size_t>(k))] = set_at_index(loc, row + static_cast<double>(i) * qi);
-      }
-  }
   const bool by_atlas = ctx.atlas && ctx.atlas->found;
   const std::optional<atlas::MandiblePrior> placed =
       by_atlas ? std::optional<atlas::MandiblePrior>(std::in_place, atlas::shipped(), ctx.atlas->pose) : std::nullopt;
@@ -828,39 +915,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   LabelImage::Pointer markers;
   unsigned n_markers = 0, mand = 0;
   std::vector<Features> feats;
-  MaskImage::Pointer dense_solid;
-  {
-    auto dense = io::make_image<MaskImage>(cg);
-    auto* dn = dense->GetBufferPointer();
-    const auto* b = bone->GetBufferPointer();
-    const double dense_hu = offset + opt.dense_threshold_hu;
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) dn[i] = b[i] && hu_crop[i] >= dense_hu;
-    // A bone cut by the scan's edge: its cancellous interior, open at the cut, is closed there.
-    const std::vector<std::size_t> lid = cap_cut_faces(dn, cg.size, scan_edge, false, b);
-    const MaskImage::Pointer dense_filled = filled(dense.GetPointer(), false);  // a thin shell must not leak diagonally
-    for (std::size_t i : lid) dn[i] = 0;
-    // Fill only thick cavities (cancellous cores). A thin enclosed cavity is a
-    // joint space or an occlusal gap wrapped by bone: filling it would weld
-    // the condyle to its fossa, the lower teeth to the upper.
-    auto cavity = io::make_image<MaskImage>(cg);
-    const auto* filled = dense_filled->GetBufferPointer();
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) cavity->GetBufferPointer()[i] = filled[i] && !dn[i];
-    std::size_t n_cavities = 0;
-    const LabelImage::Pointer cavities = components(cavity.GetPointer(), false, 0, &n_cavities);
-    // Only whether a cavity reaches `thick` deep matters: its depth map
-    // needs to be exact no deeper (the transform then looks that far only).
-    const float thick = static_cast<float>(std::max(1.0, 0.75 * max_spacing));
-    const std::vector<float> cdepth =
-        depth_inside(cavity->GetBufferPointer(), cdims, cg.spacing, thick + static_cast<float>(max_spacing));
-    const auto* cl = cavities->GetBufferPointer();
-    const float* cd = cdepth.data();
-    std::vector<float> depth(n_cavities + 1, 0.0f);
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-      if (cl[i]) depth[cl[i]] = std::max(depth[cl[i]], cd[i]);
-    dense_solid = io::make_image<MaskImage>(cg);
-    auto* ds = dense_solid->GetBufferPointer();
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) ds[i] = dn[i] || (cl[i] && depth[cl[i]] >= thick);
-  }
+  const MaskImage::Pointer dense_solid = dense_solid_of(bone.GetPointer(), hu_crop, offset + opt.dense_threshold_hu, scan_edge, max_spacing, cg);
   lap("dense solid");
   // Deepen the cores until the mandible's separates (teeth in occlusion touch
   // over a patch a few mm wide); dense solid first, then the bone mask.
@@ -987,35 +1042,11 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     if (best)
       for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
   } else {
-    // Watershed from all markers on -distance: boundaries settle on the necks.
-    std::vector<float> landscape(cg.voxel_count());
-    {
-      // Flood deep and bright first (landscape_level).
-      if (bone_depth.empty()) bone_depth = depth_inside(bone->GetBufferPointer(), cdims, cg.spacing, depth_cap);
-      const auto* b = bone->GetBufferPointer();
-      const float hu0 = static_cast<float>(offset);
-#pragma omp parallel for schedule(static)
-      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        landscape[i] = b[i] ? landscape_level(bone_depth[i], hu_crop[i], hu0) : 0.0f;
-    }
-    // Markers from the dense-bone solid flood it first, then the rest of the
-    // bone: a joint space bridged by partial volume (above the bone threshold,
-    // below the dense one) must not let the skull's flood into the condyle
-    // before the mandible's own reaches it through the condylar process (it
-    // did: 0.8 mm, 1 mm joint space, the condylar processes went to the skull).
-    const Landscape land(landscape, cg, -2.0f, 0.0f);
-    std::vector<float>().swap(landscape);
-    std::vector<unsigned> wsl;
-    if (r.marker_source == std::string("dense bone")) {
-      std::vector<std::uint8_t> dense_bone(cg.voxel_count());
-      const auto* b = bone->GetBufferPointer();
-      const auto* ds = dense_solid->GetBufferPointer();
-      for (std::size_t i = 0; i < dense_bone.size(); ++i) dense_bone[i] = b[i] && ds[i];
-      const std::vector<unsigned> first = watershed_from_markers(land, dense_bone.data(), markers->GetBufferPointer());
-      wsl = watershed_from_markers(land, b, first.data());
-    } else {
-      wsl = watershed_from_markers(land, bone->GetBufferPointer(), markers->GetBufferPointer());
-    }
+    // Watershed from all markers (separation_landscape, flood_regions).
+    if (bone_depth.empty()) bone_depth = depth_inside(bone->GetBufferPointer(), cdims, cg.spacing, depth_cap);
+    const Landscape land = separation_landscape(bone->GetBufferPointer(), bone_depth, hu_crop, offset, cg);
+    std::vector<unsigned> wsl = flood_regions(land, bone->GetBufferPointer(), r.marker_source == std::string("dense bone") ? dense_solid->GetBufferPointer() : nullptr,
+                                                    markers->GetBufferPointer());
     lap("watershed");
     const unsigned* w = wsl.data();
     const auto* b = bone->GetBufferPointer();
