@@ -699,6 +699,155 @@ static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::P
   return moved;
 }
 
+// The cores of a solid deeper than `depth` mm (step 3; depth_map: depth
+// inside the solid): its face-connected components of at least max(8
+// voxels, 100 mm3), numbered by decreasing size, with their features, their
+// atlas mass (when prior is given: the placed atlas's probability at each
+// voxel) and the fraction of each inside the located region (when
+// in_located is given).
+struct Cores {
+  LabelImage::Pointer labels;
+  unsigned n = 0;
+  std::vector<Features> f;  // f[l] for labels 1..n
+};
+
+static Cores cores_at(const std::vector<float>& depth_map, double depth, const Geometry& cg, const std::vector<float>& prior,
+                      const std::vector<std::uint8_t>& in_located) {
+  const double voxel_mm3 = cg.voxel_volume_mm3();
+  auto core = io::make_image<MaskImage>(cg);
+  auto* c = core->GetBufferPointer();
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = depth_map[i] > depth;
+  std::size_t n_cores = 0;
+  Cores out;
+  out.labels = components(core.GetPointer(), false, static_cast<std::size_t>(std::max(8.0, 100.0 / voxel_mm3)), &n_cores);
+  out.n = static_cast<unsigned>(n_cores);
+  out.f = component_features(out.labels.GetPointer(), out.n, cg);
+  const auto* lab = out.labels->GetBufferPointer();
+  if (!prior.empty())
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+      if (lab[i]) out.f[lab[i]].prior_sum += prior[i];
+  if (!in_located.empty()) {
+    std::vector<std::size_t> inside(out.n + 1, 0);
+    for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+      if (lab[i]) inside[lab[i]] += in_located[i];
+    for (unsigned l = 1; l <= out.n; ++l)
+      out.f[l].located = out.f[l].voxels ? static_cast<double>(inside[l]) / static_cast<double>(out.f[l].voxels) : 0.0;
+  }
+  return out;
+}
+
+// How a core is judged (step 4): with the atlas, by its atlas evidence;
+// without, by size and position (pick_mandible) and height.
+struct CoreJudge {
+  bool by_atlas = false;
+  double voxel_mm3 = 1, atlas_mm3 = 0, min_located = 0;
+  unsigned pick(const std::vector<Features>& f, double rr) const {
+    return by_atlas ? pick_by_atlas(f, voxel_mm3, atlas_mm3, min_located) : pick_mandible(f, voxel_mm3, rr, min_located);
+  }
+  // How good a mandible core is, to choose between depths: its atlas
+  // evidence (cm3), or without the atlas its height (mm; a core cut off
+  // below fused teeth is shorter than one reaching the condyles).
+  double merit(const std::vector<Features>& f, unsigned l, double rr) const {
+    return by_atlas ? atlas_merit(f[l], voxel_mm3, atlas_mm3) : f[l].extent(2) + 2 * rr;
+  }
+  double margin() const { return by_atlas ? 0.5 : 1.0; }  // cm3 of evidence, or mm of height
+};
+
+// The markers chosen (step 3): the cores at the depth r_used, the mandible's
+// among them (mand; 0 when none was found), and the solid they were cut from.
+struct MarkerChoice {
+  LabelImage::Pointer markers;
+  unsigned n = 0, mand = 0;
+  std::vector<Features> feats;
+  std::string source;
+  double r_used = 0;
+};
+
+// The mandible's core in one solid (step 3; sd: depth inside it): every
+// depth from rsep to r_max in 0.5 mm steps is tried and the best mandible
+// core wins by the judge's merit, but not a core that is two bones: teeth in
+// occlusion weld the maxilla to the mandible's core at shallow depths, and
+// that core scores higher still. Cores are nested (a deeper core lies inside
+// exactly one shallower core), so a welded core shows itself one step
+// deeper, where it falls apart into two large cores (the second at least
+// kSecondBoneFraction); a mandible that only loses thin parts (condyles,
+// coronoids, crowns) keeps one large core and small ones. When every
+// candidate looked like two bones, the best of them.
+static MarkerChoice deepest_mandible_core(const std::vector<float>& sd, const char* name, double rsep, double r_max, const Geometry& cg,
+                                          const std::vector<float>& prior, const std::vector<std::uint8_t>& in_located,
+                                          const CoreJudge& judge, bool debug) {
+  const double voxel_mm3 = judge.voxel_mm3, atlas_mm3 = judge.atlas_mm3;
+  MarkerChoice choice;
+  struct Trial {
+    double rr = 0;
+    LabelImage::Pointer m;
+    unsigned n = 0, l = 0;
+    std::vector<Features> f;
+    double merit = 0;  // merit of the mandible core
+  };
+  Trial pending, tallest_any;
+  double best_merit = 0;
+  auto adopt = [&](Trial& t) {
+    best_merit = t.merit;
+    choice = {t.m, t.n, t.l, t.f, name, t.rr};
+  };
+  // Decides the pending trial given the cores one step deeper (null: none).
+  auto decide = [&](const LabelImage* deeper, unsigned n_deeper) {
+    if (!pending.l) return;
+    bool two_bones = false;
+    if (deeper) {
+      std::vector<std::size_t> piece(n_deeper + 1, 0);
+      const auto* a = pending.m->GetBufferPointer();
+      const auto* d = deeper->GetBufferPointer();
+      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+        if (a[i] == pending.l && d[i]) ++piece[d[i]];
+      std::sort(piece.begin() + 1, piece.end(), std::greater<>());
+      std::size_t total = 0;
+      for (std::size_t k = 1; k < piece.size(); ++k) total += piece[k];
+      two_bones = piece.size() > 2 && static_cast<double>(piece[2]) >= kSecondBoneFraction * static_cast<double>(total);
+      if (debug)
+        std::fprintf(stderr, "  r %.1f core one step deeper: pieces %.1f, %.1f cm3 of %.1f%s\n", pending.rr,
+                     piece.size() > 1 ? piece[1] * voxel_mm3 / 1000 : 0.0, piece.size() > 2 ? piece[2] * voxel_mm3 / 1000 : 0.0,
+                     total * voxel_mm3 / 1000, two_bones ? ": two bones" : "");
+    }
+    if (pending.merit > tallest_any.merit) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.merit};
+    if (!two_bones && pending.merit > best_merit + judge.margin()) adopt(pending);
+  };
+  auto trial_at = [&](double rr) {
+    Trial t;
+    t.rr = rr;
+    Cores c = cores_at(sd, rr, cg, prior, in_located);
+    t.m = c.labels, t.n = c.n, t.f = std::move(c.f);
+    t.l = judge.pick(t.f, rr);
+    return t;
+  };
+  for (double rr = rsep; rr <= r_max; rr += 0.5) {
+    Trial t = trial_at(rr);
+    if (t.l) t.merit = judge.merit(t.f, t.l, rr);
+    if (debug && judge.by_atlas) {
+      unsigned top = 0;
+      for (unsigned l = 1; l <= t.n; ++l)
+        if (!top || t.f[l].prior_sum > t.f[top].prior_sum) top = l;
+      if (top)
+        std::fprintf(stderr, "  %s r %.1f: most atlas mass in core %u: %.1f cm3, mean p %.2f, share %.2f of %.1f cm3%s\n", name, rr, top,
+                     t.f[top].voxels * voxel_mm3 / 1000, t.f[top].prior_sum / t.f[top].voxels, t.f[top].prior_sum * voxel_mm3 / atlas_mm3,
+                     atlas_mm3 / 1000, top == t.l ? " (taken)" : "");
+    }
+    if (debug && t.l)
+      std::fprintf(stderr, "  %s r %.1f: mandible core %.1f cm3 w %.0f d %.0f h %.0f (%u cores)\n", name, rr,
+                   t.f[t.l].voxels * voxel_mm3 / 1000, t.f[t.l].extent(0) + 2 * rr, t.f[t.l].extent(1) + 2 * rr, t.merit, t.n);
+    decide(t.m.GetPointer(), t.n);
+    pending = std::move(t);
+  }
+  decide(nullptr, 0);
+  if (!choice.mand && tallest_any.l) {  // every candidate looked like two bones: the best of them
+    Trial t = trial_at(tallest_any.rr);
+    t.merit = tallest_any.merit;
+    if (t.l) adopt(t);
+  }
+  return choice;
+}
+
 // The separation's watershed landscape (step 5): landscape_level at every
 // bone voxel, 0 elsewhere.
 static Landscape separation_landscape(const std::uint8_t* bone, const std::vector<float>& bone_depth, const std::vector<float>& hu_crop,
@@ -879,137 +1028,29 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   const std::vector<float> prior = by_atlas ? prior_at_bone(*placed, bone->GetBufferPointer(), cg) : std::vector<float>{};
   lap("atlas prior");
   const double atlas_mm3 = by_atlas ? placed->mass_mm3() : 0.0;
-  auto pick = [&](const std::vector<Features>& f, double rr) {
-    return by_atlas ? pick_by_atlas(f, voxel_mm3, atlas_mm3, min_located) : pick_mandible(f, voxel_mm3, rr, min_located);
-  };
-  // How good a mandible core is, to choose between depths: its atlas
-  // evidence (cm3), or without the atlas its height (mm; a core cut off
-  // below fused teeth is shorter than one reaching the condyles).
-  auto merit = [&](const std::vector<Features>& f, unsigned l, double rr) {
-    return by_atlas ? atlas_merit(f[l], voxel_mm3, atlas_mm3) : f[l].extent(2) + 2 * rr;
-  };
-  const double merit_margin = by_atlas ? 0.5 : 1.0;  // cm3 of evidence, or mm of height
-  auto cores_of = [&](const std::vector<float>& d, double depth, unsigned* n_out, std::vector<Features>* f_out) {
-    auto core = io::make_image<MaskImage>(cg);
-    auto* c = core->GetBufferPointer();
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) c[i] = d[i] > depth;
-    std::size_t n_cores = 0;
-    LabelImage::Pointer out = components(core.GetPointer(), false, static_cast<std::size_t>(std::max(8.0, 100.0 / voxel_mm3)), &n_cores);
-    *n_out = static_cast<unsigned>(n_cores);
-    *f_out = component_features(out.GetPointer(), *n_out, cg);
-    if (by_atlas) {
-      const auto* lab = out->GetBufferPointer();
-      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        if (lab[i]) (*f_out)[lab[i]].prior_sum += prior[i];
-    }
-    if (!in_located.empty()) {
-      std::vector<std::size_t> inside(*n_out + 1, 0);
-      const auto* lab = out->GetBufferPointer();
-      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        if (lab[i]) inside[lab[i]] += in_located[i];
-      for (unsigned l = 1; l <= *n_out; ++l)
-        (*f_out)[l].located = (*f_out)[l].voxels ? static_cast<double>(inside[l]) / static_cast<double>((*f_out)[l].voxels) : 0.0;
-    }
-    return out;
-  };
-  LabelImage::Pointer markers;
-  unsigned n_markers = 0, mand = 0;
-  std::vector<Features> feats;
+  const CoreJudge judge{by_atlas, voxel_mm3, atlas_mm3, min_located};
   const MaskImage::Pointer dense_solid = dense_solid_of(bone.GetPointer(), hu_crop, offset + opt.dense_threshold_hu, scan_edge, max_spacing, cg);
   lap("dense solid");
   // Deepen the cores until the mandible's separates (teeth in occlusion touch
   // over a patch a few mm wide); dense solid first, then the bone mask.
-  double r_used = 0;
   std::vector<float> bone_depth;  // reused for the watershed landscape
   const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
   // Depths matter up to the deepest core, the landscape's cap and the crown
   // step's depth: the transforms need look no deeper (exact up to it, deeper beyond).
   const float depth_cap = std::max({static_cast<float>(r_max), kLandscapeDepthMm, static_cast<float>(opt.crown_min_depth_mm)});
+  MarkerChoice choice;
   for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
     std::vector<float> sd = depth_inside(solid->GetBufferPointer(), cdims, cg.spacing, depth_cap);
     lap("depth map");
-    // Every depth is tried; the tallest mandible core wins: a core cut off
-    // below fused teeth (only the lower body) is shorter than one reaching
-    // the condyles. But not a core that is two bones: teeth in occlusion weld
-    // the maxilla to the mandible's core at shallow depths, and that core is
-    // taller still. Cores are nested (a deeper core lies inside exactly one
-    // shallower core), so a welded core shows itself one step deeper, where
-    // it falls apart into two large cores; a mandible that only loses thin
-    // parts (condyles, coronoids, crowns) keeps one large core and small ones.
-    struct Trial {
-      double rr = 0;
-      LabelImage::Pointer m;
-      unsigned n = 0, l = 0;
-      std::vector<Features> f;
-      double merit = 0;  // merit() of the mandible core
-    };
-    Trial pending, tallest_any;  // tallest_any: markers are recomputed if every candidate is two bones
-    double best_merit = 0;
-    auto adopt = [&](Trial& t) {
-      best_merit = t.merit;
-      markers = t.m;
-      n_markers = t.n;
-      feats = t.f;
-      mand = t.l;
-      r.marker_source = name;
-      r_used = t.rr;
-    };
-    // Decides the pending trial given the cores one step deeper (null: none).
-    auto decide = [&](const LabelImage* deeper, unsigned n_deeper) {
-      if (!pending.l) return;
-      bool two_bones = false;
-      if (deeper) {
-        std::vector<std::size_t> piece(n_deeper + 1, 0);
-        const auto* a = pending.m->GetBufferPointer();
-        const auto* d = deeper->GetBufferPointer();
-        for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-          if (a[i] == pending.l && d[i]) ++piece[d[i]];
-        std::sort(piece.begin() + 1, piece.end(), std::greater<>());
-        std::size_t total = 0;
-        for (std::size_t k = 1; k < piece.size(); ++k) total += piece[k];
-        two_bones = piece.size() > 2 && static_cast<double>(piece[2]) >= kSecondBoneFraction * static_cast<double>(total);
-        if (lap.on())
-          std::fprintf(stderr, "  r %.1f core one step deeper: pieces %.1f, %.1f cm3 of %.1f%s\n", pending.rr,
-                       piece.size() > 1 ? piece[1] * voxel_mm3 / 1000 : 0.0, piece.size() > 2 ? piece[2] * voxel_mm3 / 1000 : 0.0,
-                       total * voxel_mm3 / 1000, two_bones ? ": two bones" : "");
-      }
-      if (pending.merit > tallest_any.merit) tallest_any = {pending.rr, nullptr, 0, pending.l, {}, pending.merit};
-      if (!two_bones && pending.merit > best_merit + merit_margin) adopt(pending);
-    };
-    for (double rr = rsep; rr <= r_max; rr += 0.5) {
-      Trial t;
-      t.rr = rr;
-      t.m = cores_of(sd, rr, &t.n, &t.f);
-      t.l = pick(t.f, rr);
-      if (t.l) t.merit = merit(t.f, t.l, rr);
-      if (lap.on() && by_atlas) {
-        unsigned top = 0;
-        for (unsigned l = 1; l <= t.n; ++l)
-          if (!top || t.f[l].prior_sum > t.f[top].prior_sum) top = l;
-        if (top)
-          std::fprintf(stderr, "  %s r %.1f: most atlas mass in core %u: %.1f cm3, mean p %.2f, share %.2f of %.1f cm3%s\n", name, rr, top,
-                       t.f[top].voxels * voxel_mm3 / 1000, t.f[top].prior_sum / t.f[top].voxels, t.f[top].prior_sum * voxel_mm3 / atlas_mm3,
-                       atlas_mm3 / 1000, top == t.l ? " (taken)" : "");
-      }
-      if (lap.on() && t.l)
-        std::fprintf(stderr, "  %s r %.1f: mandible core %.1f cm3 w %.0f d %.0f h %.0f (%u cores)\n", name, rr,
-                     t.f[t.l].voxels * voxel_mm3 / 1000, t.f[t.l].extent(0) + 2 * rr, t.f[t.l].extent(1) + 2 * rr, t.merit, t.n);
-      decide(t.m.GetPointer(), t.n);
-      pending = std::move(t);
-    }
-    decide(nullptr, 0);
-    pending = Trial{};
-    if (!mand && tallest_any.l) {  // every candidate looked like two bones: the tallest, as before
-      Trial t;
-      t.rr = tallest_any.rr;
-      t.m = cores_of(sd, t.rr, &t.n, &t.f);
-      t.l = pick(t.f, t.rr);
-      t.merit = tallest_any.merit;
-      if (t.l) adopt(t);
-    }
+    choice = deepest_mandible_core(sd, name, rsep, r_max, cg, prior, in_located, judge, lap.on());
     if (solid == bone) bone_depth = std::move(sd);
-    if (mand) break;
+    if (choice.mand) break;
   }
+  if (choice.mand) r.marker_source = choice.source;
+  const LabelImage::Pointer markers = choice.markers;
+  const unsigned n_markers = choice.n, mand = choice.mand;
+  const std::vector<Features>& feats = choice.feats;
+  const double r_used = choice.r_used;
   lap("cores");
   if (lap.on())
     for (unsigned l = 1; l <= n_markers; ++l)
