@@ -1191,6 +1191,67 @@ static void set_truncation(Result& r) {
   if (r.truncated) r.warnings.push_back(kTruncatedWarning);
 }
 
+// Step 6's surface level (docs/segmentation.md): the mask's boundary moved
+// in to surface_hu (the half-maximum between soft tissue and cortex) where
+// the scan resolves the cortex, its interior kept. In place on crop_mask
+// (grid cg, HU hu_crop); cut_faces: faces of the grid on the scan's edge.
+static void to_surface_level(std::vector<std::uint8_t>& crop_mask, const std::vector<float>& hu_crop, const Geometry& cg, double surface_hu,
+                             double bone_hu, double soft_tissue_hu, unsigned cut_faces) {
+  // Keep voxels above the surface level, plus voxels enclosed by them and
+  // by the neighbouring bones: where the separation cut the mandible from
+  // another bone (a condyle from its fossa across a bridged joint space),
+  // its cortex is open, and the cancellous interior must not drain away
+  // through the cut (it did: 0.8 mm, teeth in occlusion, 1 mm joint space,
+  // 47 of 80 cm3 kept).
+  // The level moves the boundary in by the partial-volume layer only: a
+  // voxel deeper than 1.5 voxels inside the mask stays whatever its value.
+  // Where the cortex is faint (low-density bone), the shell above the level
+  // has holes, and through them the whole interior drained (bone HU scaled
+  // to a 1000 HU cortex and 250 HU cancellous: Dice 0.68).
+  const double step = std::max({cg.spacing[0], cg.spacing[1], cg.spacing[2]});
+  const float deep = static_cast<float>(1.5 * step);
+  const std::vector<float> depth = depth_inside(crop_mask.data(), cg.size, cg.spacing, deep + static_cast<float>(step));
+  // The shell that encloses the interior is drawn at the local
+  // half-maximum where that is lower: half-way between soft tissue and the
+  // brightest mask voxel within two voxels. 700 HU is the half-maximum of a
+  // cortex of ~1400 HU; a cortex thinner than the voxels plus the scanner's
+  // blur (a child's mandible at 1 mm) peaks lower, its shell above 700 HU
+  // had gaps and the cancellous core of the thin parts drained (scale 0.7
+  // at 1 mm: 24.2 of 26.8 cm3 kept, Dice 0.90). The boundary itself stays
+  // at 700 HU: the voxels between the two levels are not kept, only what
+  // the shell encloses, so a blurred edge is not fattened (PSF sigma 1 mm
+  // with the local level as the boundary: Dice 0.966 -> 0.951).
+  const float soft_hu = static_cast<float>(soft_tissue_hu);
+  const auto local_level = [&](std::size_t i) {
+    const long nx = static_cast<long>(cg.size[0]), ny = static_cast<long>(cg.size[1]), nz = static_cast<long>(cg.size[2]);
+    const long x = static_cast<long>(i % cg.size[0]), y = static_cast<long>((i / cg.size[0]) % cg.size[1]),
+               z = static_cast<long>(i / (cg.size[0] * cg.size[1]));
+    float peak = hu_crop[i];
+    for (long c = std::max(0L, z - 2); c <= std::min(nz - 1, z + 2); ++c)
+      for (long b = std::max(0L, y - 2); b <= std::min(ny - 1, y + 2); ++b)
+        for (long a = std::max(0L, x - 2); a <= std::min(nx - 1, x + 2); ++a) {
+          const std::size_t q = static_cast<std::size_t>((c * ny + b) * nx + a);
+          if (crop_mask[q]) peak = std::max(peak, hu_crop[q]);
+        }
+    return std::min(static_cast<float>(surface_hu), 0.5f * (soft_hu + peak));
+  };
+  auto hi_img = io::make_image<MaskImage>(cg);
+  auto* h = hi_img->GetBufferPointer();
+  const long nvox = static_cast<long>(crop_mask.size());
+#pragma omp parallel for schedule(static)
+  for (long li = 0; li < nvox; ++li) {
+    const std::size_t i = static_cast<std::size_t>(li);
+    if (!crop_mask[i]) h[i] = hu_crop[i] >= bone_hu;
+    else if (hu_crop[i] >= surface_hu || depth[i] > deep) h[i] = 1;
+    else h[i] = hu_crop[i] >= local_level(i);
+  }
+  cap_cut_faces(h, cg.size, cut_faces, true);
+  const MaskImage::Pointer hi_filled = filled(hi_img.GetPointer(), true);
+  const auto* fh = hi_filled->GetBufferPointer();
+  for (std::size_t i = 0; i < crop_mask.size(); ++i)
+    crop_mask[i] = crop_mask[i] && (hu_crop[i] >= surface_hu || (fh[i] && !h[i]) || depth[i] > deep);
+}
+
 // Steps 6-7 on the input grid: surface placement, clean-up, truncation.
 // cortex_resolved: by the scan itself (the grid may be a finer interpolation
 // of it, which does not resolve a cortex the scan did not; GridContext).
@@ -1233,61 +1294,8 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
   // where the scan resolves the cortex (GridContext::cortex_resolved); the
   // cancellous core below that level is restored by the hole filling.
   if (cortex_resolved) {
-    const double surface_hu = offset + opt.surface_threshold_hu, bone_hu = offset + opt.bone_threshold_hu;
-    r.surface_level_hu = surface_hu;
-    // Keep voxels above the surface level, plus voxels enclosed by them and
-    // by the neighbouring bones: where the separation cut the mandible from
-    // another bone (a condyle from its fossa across a bridged joint space),
-    // its cortex is open, and the cancellous interior must not drain away
-    // through the cut (it did: 0.8 mm, teeth in occlusion, 1 mm joint space,
-    // 47 of 80 cm3 kept).
-    // The level moves the boundary in by the partial-volume layer only: a
-    // voxel deeper than 1.5 voxels inside the mask stays whatever its value.
-    // Where the cortex is faint (low-density bone), the shell above the level
-    // has holes, and through them the whole interior drained (bone HU scaled
-    // to a 1000 HU cortex and 250 HU cancellous: Dice 0.68).
-    const double step = std::max({cg.spacing[0], cg.spacing[1], cg.spacing[2]});
-    const float deep = static_cast<float>(1.5 * step);
-    const std::vector<float> depth = depth_inside(crop_mask.data(), cg.size, cg.spacing, deep + static_cast<float>(step));
-    // The shell that encloses the interior is drawn at the local
-    // half-maximum where that is lower: half-way between soft tissue and the
-    // brightest mask voxel within two voxels. 700 HU is the half-maximum of a
-    // cortex of ~1400 HU; a cortex thinner than the voxels plus the scanner's
-    // blur (a child's mandible at 1 mm) peaks lower, its shell above 700 HU
-    // had gaps and the cancellous core of the thin parts drained (scale 0.7
-    // at 1 mm: 24.2 of 26.8 cm3 kept, Dice 0.90). The boundary itself stays
-    // at 700 HU: the voxels between the two levels are not kept, only what
-    // the shell encloses, so a blurred edge is not fattened (PSF sigma 1 mm
-    // with the local level as the boundary: Dice 0.966 -> 0.951).
-    const float soft_hu = static_cast<float>(offset + kSoftTissueHu);
-    const auto local_level = [&](std::size_t i) {
-      const long nx = static_cast<long>(cg.size[0]), ny = static_cast<long>(cg.size[1]), nz = static_cast<long>(cg.size[2]);
-      const long x = static_cast<long>(i % cg.size[0]), y = static_cast<long>((i / cg.size[0]) % cg.size[1]),
-                 z = static_cast<long>(i / (cg.size[0] * cg.size[1]));
-      float peak = hu_crop[i];
-      for (long c = std::max(0L, z - 2); c <= std::min(nz - 1, z + 2); ++c)
-        for (long b = std::max(0L, y - 2); b <= std::min(ny - 1, y + 2); ++b)
-          for (long a = std::max(0L, x - 2); a <= std::min(nx - 1, x + 2); ++a) {
-            const std::size_t q = static_cast<std::size_t>((c * ny + b) * nx + a);
-            if (crop_mask[q]) peak = std::max(peak, hu_crop[q]);
-          }
-      return std::min(static_cast<float>(surface_hu), 0.5f * (soft_hu + peak));
-    };
-    auto hi_img = io::make_image<MaskImage>(cg);
-    auto* h = hi_img->GetBufferPointer();
-    const long nvox = static_cast<long>(crop_mask.size());
-#pragma omp parallel for schedule(static)
-    for (long li = 0; li < nvox; ++li) {
-      const std::size_t i = static_cast<std::size_t>(li);
-      if (!crop_mask[i]) h[i] = hu_crop[i] >= bone_hu;
-      else if (hu_crop[i] >= surface_hu || depth[i] > deep) h[i] = 1;
-      else h[i] = hu_crop[i] >= local_level(i);
-    }
-    cap_cut_faces(h, cg.size, cut_faces, true);
-    const MaskImage::Pointer hi_filled = filled(hi_img.GetPointer(), true);
-    const auto* fh = hi_filled->GetBufferPointer();
-    for (std::size_t i = 0; i < crop_mask.size(); ++i)
-      crop_mask[i] = crop_mask[i] && (hu_crop[i] >= surface_hu || (fh[i] && !h[i]) || depth[i] > deep);
+    r.surface_level_hu = offset + opt.surface_threshold_hu;
+    to_surface_level(crop_mask, hu_crop, cg, r.surface_level_hu, offset + opt.bone_threshold_hu, offset + kSoftTissueHu, cut_faces);
   }
   if (lap.on()) std::fprintf(stderr, "  after surface level: %zu voxels\n", static_cast<std::size_t>(std::count(crop_mask.begin(), crop_mask.end(), 1)));
   lap("surface level");
