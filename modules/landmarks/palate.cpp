@@ -114,6 +114,33 @@ PalatalPlane fit_floor(const std::vector<Candidate>& cand, int profiles, const V
   return r;
 }
 
+// Where the palate can be, from the mandible surface in the plane frame
+// (origin o; heights along e_si, antero-posterior along e_ap): above the
+// incisal edges (h_incisal: the highest point within 20 mm of the front of
+// the chin, near the plane), between the front of the chin (amin) and the
+// back of the rami (amax); hmax: the highest point (the condyles).
+struct SearchRegion {
+  double amin, amax, hmax, h_incisal;
+};
+
+SearchRegion search_region(const Mesh& mandible, const Vec3& o, const Vec3& e_ml, const Vec3& e_ap, const Vec3& e_si) {
+  double umax = 0;
+  SearchRegion r{kInf, -kInf, -kInf, -kInf};
+  for (const Vec3& v : mandible.vertices) {
+    const Vec3 d = v - o;
+    umax = std::max(umax, std::abs(dot(d, e_ml)));
+    r.amax = std::max(r.amax, dot(d, e_ap));
+    r.hmax = std::max(r.hmax, dot(d, e_si));
+  }
+  for (const Vec3& v : mandible.vertices)
+    if (std::abs(dot(v - o, e_ml)) < 0.12 * umax) r.amin = std::min(r.amin, dot(v - o, e_ap));
+  for (const Vec3& v : mandible.vertices) {
+    const Vec3 d = v - o;
+    if (std::abs(dot(d, e_ml)) < 0.12 * umax && dot(d, e_ap) < r.amin + 20.0) r.h_incisal = std::max(r.h_incisal, dot(d, e_si));
+  }
+  return r;
+}
+
 }  // namespace
 
 PalatalPlane find_palatal_plane(const Volume& ct, const Mesh& mandible, const Plane& midsagittal, const PalateOptions& opt) {
@@ -126,23 +153,9 @@ PalatalPlane find_palatal_plane(const Volume& ct, const Mesh& mandible, const Pl
   reference::plane_frame(midsagittal, e_ml, e_ap, e_si);
   const Vec3 o = midsagittal.point;
 
-  // Where the palate can be, from the mandible: above the incisal edges,
-  // between the front of the chin and most of the way back to the rami.
-  double umax = 0, amax = -kInf, hmax = -kInf;
-  for (const Vec3& v : mandible.vertices) {
-    const Vec3 d = v - o;
-    umax = std::max(umax, std::abs(dot(d, e_ml)));
-    amax = std::max(amax, dot(d, e_ap));
-    hmax = std::max(hmax, dot(d, e_si));
-  }
-  double amin = kInf;
-  for (const Vec3& v : mandible.vertices)
-    if (std::abs(dot(v - o, e_ml)) < 0.12 * umax) amin = std::min(amin, dot(v - o, e_ap));
-  double h_incisal = -kInf;
-  for (const Vec3& v : mandible.vertices) {
-    const Vec3 d = v - o;
-    if (std::abs(dot(d, e_ml)) < 0.12 * umax && dot(d, e_ap) < amin + 20.0) h_incisal = std::max(h_incisal, dot(d, e_si));
-  }
+  // Where the palate can be, from the mandible (search_region).
+  const SearchRegion sr = search_region(mandible, o, e_ml, e_ap, e_si);
+  const double amin = sr.amin, amax = sr.amax, hmax = sr.hmax, h_incisal = sr.h_incisal;
   if (!std::isfinite(amin) || !std::isfinite(h_incisal)) {
     r.reason = "no symphysis on the mandible surface";
     return r;

@@ -848,6 +848,43 @@ static MarkerChoice deepest_mandible_core(const std::vector<float>& sd, const ch
   return choice;
 }
 
+// What of the mandible's watershed region rm is kept (step 6): the part
+// within `band` mm of its core (core_m), so that thin bright structures
+// flooded from it (streaks) stay out, and beyond it, up to `reach` mm, what
+// is thick (survives an opening by a one-voxel ball: streaks are rays and
+// sheets one or two voxels thin; a tooth crown whose thin shell left no core
+// within the band stays), only where attached through bone to the band part
+// (a separate bone without a marker of its own, the hyoid, is flooded by
+// whichever region reaches it through the background and must stay out).
+static std::vector<std::uint8_t> band_and_attached(const std::vector<std::uint8_t>& rm, const std::vector<std::uint8_t>& core_m, float band,
+                                                   float reach, const Geometry& cg, SegLap& lap) {
+  const Dims3& cdims = cg.size;
+  const Box mbox = bounding_box(rm.data(), cdims, 2);  // where the band distance and the opening are needed
+  const float band2 = band * band, reach2 = reach * reach;
+  std::vector<float> nd2(cg.voxel_count(), kNoFeature);  // mm^2 to the core, exact up to reach^2
+  insert(squared_distance_transform(extract(core_m.data(), cdims, mbox).data(), mbox.size, cg.spacing, reach2), mbox, nd2.data(), cdims);
+  lap("band distance");
+  std::vector<std::uint8_t> thick(cg.voxel_count(), 0);
+  if (reach > band) {
+    std::vector<std::uint8_t> part = extract(rm.data(), cdims, mbox);
+    open_ball(part, mbox.size, {1, 1, 1});
+    insert(part, mbox, thick.data(), cdims);
+  }
+  lap("opening");
+  auto cand = io::make_image<MaskImage>(cg);
+  auto* cm = cand->GetBufferPointer();
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i) cm[i] = rm[i] && (nd2[i] <= band2 || (thick[i] && nd2[i] <= reach2));
+  std::size_t n_parts = 0;
+  const LabelImage::Pointer parts = components(cand.GetPointer(), false, 0, &n_parts);
+  const auto* cl = parts->GetBufferPointer();
+  std::vector<bool> attached(n_parts + 1, false);
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+    if (cl[i] && nd2[i] <= band2) attached[cl[i]] = true;
+  std::vector<std::uint8_t> kept(cg.voxel_count(), 0);
+  for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = cl[i] && attached[cl[i]];
+  return kept;
+}
+
 // The separation's watershed landscape (step 5): landscape_level at every
 // bone voxel, 0 elsewhere.
 static Landscape separation_landscape(const std::uint8_t* bone, const std::vector<float>& bone_depth, const std::vector<float>& hu_crop,
@@ -1120,47 +1157,18 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
                   : [&] { std::vector<bool> j(n_markers + 1, false); j[mand] = true; return j; }();
     auto in_mandible = [&](LabelImage::PixelType l) { return l != 0 && joined[l]; };
     lap("fragments");
-    // Keep the reconstruction within a band around the mandible's core so
-    // that thin bright structures (streaks) flooded from it stay out.
-    // The mandible's region (it holds its core) and a margin: where the
-    // band distance and the opening below are needed.
+    // The mandible's region (it holds its core), kept within a band around
+    // its core and by thick attached parts (band_and_attached).
     std::vector<std::uint8_t> rm(cg.voxel_count());
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) rm[i] = b[i] && in_mandible(w[i]);
-    const Box mbox = bounding_box(rm.data(), cdims, 2);
     std::vector<std::uint8_t> core_m(cg.voxel_count());
     for (std::size_t i = 0; i < cg.voxel_count(); ++i) core_m[i] = in_mandible(m[i]);
     const float band = static_cast<float>(r_used + 2.0 * std::max(max_spacing, native_max_spacing));  // two voxels of the coarser of the grid and the scan
     // Scans coarser than the working grid never resolved thin shells, and
     // their band is already two scan voxels wide: band only. The thick parts
-    // below reach at most Options::thick_reach_mm from the core (a crown's height).
+    // reach at most Options::thick_reach_mm from the core (a crown's height).
     const float reach = static_cast<float>(std::max<double>(band, opt.thick_reach_mm));
-    const float band2 = band * band, reach2 = reach * reach;
-    std::vector<float> nd2(cg.voxel_count(), kNoFeature);  // mm^2 to the core, exact up to reach^2
-    insert(squared_distance_transform(extract(core_m.data(), cdims, mbox).data(), mbox.size, cg.spacing, reach2), mbox, nd2.data(), cdims);
-    lap("band distance");
-    // Beyond the band, keep what is thick: the region opened by a one-voxel
-    // ball. Streaks are rays and sheets one or two voxels thin and vanish; a
-    // tooth crown whose thin shell left no core within the band stays.
-    std::vector<std::uint8_t> thick(cg.voxel_count(), 0);
-    {
-      std::vector<std::uint8_t> part = extract(rm.data(), cdims, mbox);
-      open_ball(part, mbox.size, {1, 1, 1});
-      insert(part, mbox, thick.data(), cdims);
-    }
-    lap("opening");
-    // Only thick parts attached (through bone) to the band part: a separate
-    // bone without a marker of its own (the hyoid) is flooded by whichever
-    // region reaches it through the background and must stay out.
-    auto cand = io::make_image<MaskImage>(cg);
-    auto* cm = cand->GetBufferPointer();
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) cm[i] = rm[i] && (nd2[i] <= band2 || (fine_scan && thick[i] && nd2[i] <= reach2));
-    std::size_t n_parts = 0;
-    const LabelImage::Pointer parts = components(cand.GetPointer(), false, 0, &n_parts);
-    const auto* cl = parts->GetBufferPointer();
-    std::vector<bool> attached(n_parts + 1, false);
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-      if (cl[i] && nd2[i] <= band2) attached[cl[i]] = true;
-    for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = cl[i] && attached[cl[i]];
+    crop_mask = band_and_attached(rm, core_m, band, fine_scan ? reach : band, cg, lap);
     out.other.assign(crop_mask.size(), 0);
     for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && !in_mandible(w[i]) && w[i] != 0;
     lap("attached parts");
@@ -1435,6 +1443,24 @@ static Result segment_on_grid(const Volume& ct, const Options& opt, const GridCo
   return finalize(ct, opt, region, std::move(mask), sp.info, ctx.cortex_resolved);
 }
 
+// The region located on the coarse grid, grown by one coarse voxel
+// (26-neighbourhood), on that grid (segment_located's "located region").
+static Mask grown_by_one_voxel(const Separated& located) {
+  Mask region;
+  region.geom = located.cg;
+  region.data.assign(located.mand.size(), 0);
+  const Dims3& d = located.cg.size;
+  for (std::size_t k = 0; k < d[2]; ++k)
+    for (std::size_t j = 0; j < d[1]; ++j)
+      for (std::size_t i = 0; i < d[0]; ++i) {
+        if (!located.mand[located.cg.linear(i, j, k)]) continue;
+        for (std::size_t z = k ? k - 1 : 0; z <= std::min(k + 1, d[2] - 1); ++z)
+          for (std::size_t y = j ? j - 1 : 0; y <= std::min(j + 1, d[1] - 1); ++y)
+            for (std::size_t x = i ? i - 1 : 0; x <= std::min(i + 1, d[0] - 1); ++x) region.data[located.cg.linear(x, y, z)] = 1;
+      }
+  return region;
+}
+
 // Fine scans (docs/segmentation.md, "Locating the mandible first"): steps 1-5
 // on a bin-averaged grid of about opt.locate_spacing_mm find the mandible's
 // region; steps 1-7 then run at full resolution on the scan cropped to that
@@ -1486,21 +1512,7 @@ static Result segment_located(const Volume& ct, const Options& opt, const GridCo
   for (std::size_t k = 0; k < size[2]; ++k)
     for (std::size_t j = 0; j < size[1]; ++j)
       std::copy_n(ct.hu.data() + g.linear(lo[0], j + lo[1], k + lo[2]), size[0], sub.hu.data() + sub.geom.linear(0, j, k));
-  // The located region grown by one coarse voxel (26-neighbourhood), in LPS.
-  Mask region;
-  region.geom = located.cg;
-  region.data.assign(located.mand.size(), 0);
-  {
-    const Dims3& d = located.cg.size;
-    for (std::size_t k = 0; k < d[2]; ++k)
-      for (std::size_t j = 0; j < d[1]; ++j)
-        for (std::size_t i = 0; i < d[0]; ++i) {
-          if (!located.mand[located.cg.linear(i, j, k)]) continue;
-          for (std::size_t z = k ? k - 1 : 0; z <= std::min(k + 1, d[2] - 1); ++z)
-            for (std::size_t y = j ? j - 1 : 0; y <= std::min(j + 1, d[1] - 1); ++y)
-              for (std::size_t x = i ? i - 1 : 0; x <= std::min(i + 1, d[0] - 1); ++x) region.data[located.cg.linear(x, y, z)] = 1;
-        }
-  }
+  const Mask region = grown_by_one_voxel(located);
   GridContext in_crop = whole;
   in_crop.offset_hu = located.info.offset_hu;
   in_crop.cut = cut;
