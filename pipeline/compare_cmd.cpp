@@ -15,6 +15,7 @@
 #include "descriptors/matching.h"
 #include "geometry/mesh_geometry.h"
 #include "pipeline/commands.h"
+#include "pipeline/compare_checks.h"
 #include "reference/reference.h"
 #include "reports/render.h"
 #include "reports/writers.h"
@@ -68,41 +69,100 @@ bool is_run_folder(const fs::path& p) {
   return fs::is_directory(p) && fs::exists(p / "results.json") && fs::exists(p / "mandible.vtp");
 }
 
+struct ScoreRow {
+  std::string label;
+  std::vector<std::string> path;
+  int prec;
+};
+
+// The scores compare puts side by side (results.json paths).
+std::vector<ScoreRow> score_rows() {
+  std::vector<ScoreRow> rows = {{"SAF score (rad)", {"scores", "saf", "score"}, 4},
+                                {"mirror distance RMS (mm)", {"scores", "mirror", "rms_mm"}, 2},
+                                {"mirror distance p95 (mm)", {"scores", "mirror", "p95_mm"}, 2}};
+  for (const char* m : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg", "condyle_to_plane_mm", "gonion_to_plane_mm"})
+    rows.push_back({std::string(m) + " L−R", {"scores", "bilateral", m, "diff"}, 2});
+  return rows;
+}
+
+std::vector<std::string> srd_mismatch_path(const std::string& landmark) {
+  return {"scores", "saf", "srd", landmark, "mirror_mismatch_rad"};
+}
+
+double score(const RunData& d, const std::vector<std::string>& path, bool* ok) {
+  return compare_checks::score_at(d.results, path, (d.dir / "results.json").string(), ok);
+}
+
+// Every score compare reads, type-checked before any work (exit 4 naming the field).
+void check_scores(const RunData& d) {
+  bool ok = false;
+  for (const auto& r : score_rows()) score(d, r.path, &ok);
+  for (const auto& [name, srd] : d.srd) score(d, srd_mismatch_path(name), &ok);
+}
+
+// srd.json, checked field by field (exit 4 naming the field).
+void load_srd(const fs::path& file, RunData& d) {
+  namespace cc = compare_checks;
+  using T = json::Value::Type;
+  const std::string f = file.string();
+  json::Value j;
+  try {
+    j = json::Value::parse(slurp(file));
+  } catch (const std::exception& e) {
+    throw Error(ExitCode::InputInvalid, f + ": " + e.what());
+  }
+  if (!j.is_object()) cc::bad_field(f, "(top level)", "expected an object");
+  const json::Value* bins = cc::member(j, "bins", T::Number, f, "bins");
+  if (!bins || bins->as_number() != std::floor(bins->as_number()) || bins->as_number() < 1 || bins->as_number() > cc::kMaxSrdBins)
+    cc::bad_field(f, "bins", "expected an integer 1.." + std::to_string(cc::kMaxSrdBins));
+  d.srd_bins = static_cast<int>(bins->as_number());
+  const json::Value* lms = cc::member(j, "landmarks", T::Object, f, "landmarks");
+  if (!lms) return;
+  if (lms->size() > cc::kMaxLandmarks) cc::bad_field(f, "landmarks", "more than " + std::to_string(cc::kMaxLandmarks) + " landmarks");
+  for (const auto& [name, blocks] : lms->items()) {
+    const std::string field = "landmarks." + name;
+    if (!blocks.is_array()) cc::bad_field(f, field, "expected an array");
+    asymmetry::Srd x{name, {}};
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+      const std::string bf = field + "[" + std::to_string(i) + "]";
+      if (!blocks[i].is_object()) cc::bad_field(f, bf, "expected an object");
+      const json::Value* conf = cc::member(blocks[i], "configuration", T::String, f, bf + ".configuration");
+      const json::Value* mir = cc::member(blocks[i], "mirrored", T::Bool, f, bf + ".mirrored");
+      const json::Value* h = cc::member(blocks[i], "histogram", T::Array, f, bf + ".histogram");
+      if (!conf || !mir || !h) cc::bad_field(f, bf, "needs configuration, mirrored and histogram");
+      if (h->size() % static_cast<std::size_t>(d.srd_bins)) cc::bad_field(f, bf + ".histogram", "length is not a multiple of bins");
+      asymmetry::SrdBlock b{conf->as_string(), mir->as_bool(), {}};
+      for (std::size_t k = 0; k < h->size(); ++k) {
+        const json::Value& e = (*h)[k];
+        if (!e.is_number() || !std::isfinite(e.as_number()) || e.as_number() < 0)
+          cc::bad_field(f, bf + ".histogram[" + std::to_string(k) + "]", "expected a finite number >= 0");
+        b.histogram.push_back(e.as_number());
+      }
+      x.blocks.push_back(std::move(b));
+    }
+    d.srd[name] = std::move(x);
+  }
+}
+
+// A run folder, every field compare uses checked: wrong types, non-finite or
+// absurd coordinates (beyond 10 m) and degenerate surfaces are exit 4 with
+// one line naming the file and the field (compare_checks.h).
 RunData load_run(const fs::path& dir) {
   RunData d;
   d.dir = dir;
+  const std::string rf = (dir / "results.json").string();
   try {
     d.results = json::Value::parse(slurp(dir / "results.json"));
   } catch (const std::exception& e) {
-    throw Error(ExitCode::InputInvalid, (dir / "results.json").string() + ": " + e.what());
+    throw Error(ExitCode::InputInvalid, rf + ": " + e.what());
   }
+  if (!d.results.is_object()) compare_checks::bad_field(rf, "(top level)", "expected an object");
+  d.landmarks = compare_checks::read_landmarks(d.results, rf);
+  d.plane = compare_checks::read_plane(d.results, rf);
   d.mesh = surface::read_vtp((dir / "mandible.vtp").string());
-  if (d.results.contains("landmarks"))
-    for (const auto& [name, v] : d.results.at("landmarks").items())
-      if (v.is_array() && v.size() == 3) d.landmarks.set(name, {v[0].as_number(), v[1].as_number(), v[2].as_number()});
-  if (fs::exists(dir / "srd.json")) {
-    try {
-      const auto j = json::Value::parse(slurp(dir / "srd.json"));
-      d.srd_bins = static_cast<int>(j.at("bins").as_number());
-      for (const auto& [name, blocks] : j.at("landmarks").items()) {
-        asymmetry::Srd x{name, {}};
-        for (std::size_t i = 0; i < blocks.size(); ++i) {
-          asymmetry::SrdBlock b{blocks[i].at("configuration").as_string(), blocks[i].at("mirrored").as_bool(), {}};
-          const auto& h = blocks[i].at("histogram");
-          for (std::size_t k = 0; k < h.size(); ++k) b.histogram.push_back(h[k].as_number());
-          x.blocks.push_back(std::move(b));
-        }
-        d.srd[name] = std::move(x);
-      }
-    } catch (const std::exception& e) {
-      throw Error(ExitCode::InputInvalid, (dir / "srd.json").string() + ": " + e.what());
-    }
-  }
-  const auto& sp = d.results.at("symmetry_plane");
-  for (int a = 0; a < 3; ++a) {
-    d.plane.point[a] = sp.at("point")[static_cast<std::size_t>(a)].as_number();
-    d.plane.normal[a] = sp.at("normal")[static_cast<std::size_t>(a)].as_number();
-  }
+  compare_checks::check_mesh(d.mesh, (dir / "mandible.vtp").string());
+  if (fs::exists(dir / "srd.json")) load_srd(dir / "srd.json", d);
+  check_scores(d);
   return d;
 }
 
@@ -115,19 +175,6 @@ RunData resolve(const std::string& input, const fs::path& out, const std::string
   const cli::Args a = cli::parse(run_spec(), {input, "-o", dir.string(), "-q"});
   run_command(a, "mandisym run " + input + " -o " + dir.string());
   return load_run(dir);
-}
-
-double number_at(const json::Value& v, std::initializer_list<const char*> path, bool* ok) {
-  const json::Value* cur = &v;
-  for (const char* k : path) {
-    if (!cur->is_object() || !cur->contains(k)) {
-      *ok = false;
-      return NAN;
-    }
-    cur = &cur->at(k);
-  }
-  *ok = cur->is_number();
-  return *ok ? cur->as_number() : NAN;
 }
 
 using reports::fixed;
@@ -149,6 +196,12 @@ int compare_command(const cli::Args& args) {
 
   const RunData pre = resolve(args.positional[0], out, "pre", quiet);
   const RunData post = resolve(args.positional[1], out, "post", quiet);
+  // Same patient, in order? Warnings on stderr (also under --quiet: they say
+  // the comparison may be meaningless) and in compare.json.
+  const compare_checks::Consistency cons = compare_checks::check_consistency(
+      {pre.results, pre.mesh, pre.landmarks, (pre.dir / "results.json").string()},
+      {post.results, post.mesh, post.landmarks, (post.dir / "results.json").string()});
+  for (const auto& w : cons.warnings) std::cerr << "mandisym: warning: " << w << std::endl;
 
   // Align POST to PRE and measure the change.
   const auto al = reference::align_rigid(post.mesh, pre.mesh, post.landmarks, pre.landmarks);
@@ -199,26 +252,13 @@ int compare_command(const cli::Args& args) {
   ch["max_outward_mm"] = max_out;
   ch["max_inward_mm"] = max_in;
   cj["change"] = ch;
-  struct Row {
-    std::string label;
-    std::vector<const char*> path;
-    int prec;
-  };
-  std::vector<Row> rows = {{"SAF score (rad)", {"scores", "saf", "score"}, 4},
-                           {"mirror distance RMS (mm)", {"scores", "mirror", "rms_mm"}, 2},
-                           {"mirror distance p95 (mm)", {"scores", "mirror", "p95_mm"}, 2}};
-  for (const char* m : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg", "condyle_to_plane_mm", "gonion_to_plane_mm"})
-    rows.push_back({std::string(m) + " L−R", {"scores", "bilateral", m, "diff"}, 2});
+  const std::vector<ScoreRow> rows = score_rows();
   json::Value sj = json::Value::object();
   std::ostringstream table;
   table << "<table><tr><th>score</th><th>pre</th><th>post</th><th>change</th></tr>\n";
   for (const auto& r : rows) {
     bool ok1 = false, ok2 = false;
-    double a = NAN, b = NAN;
-    switch (r.path.size()) {
-      case 3: a = number_at(pre.results, {r.path[0], r.path[1], r.path[2]}, &ok1); b = number_at(post.results, {r.path[0], r.path[1], r.path[2]}, &ok2); break;
-      case 4: a = number_at(pre.results, {r.path[0], r.path[1], r.path[2], r.path[3]}, &ok1); b = number_at(post.results, {r.path[0], r.path[1], r.path[2], r.path[3]}, &ok2); break;
-    }
+    const double a = score(pre, r.path, &ok1), b = score(post, r.path, &ok2);
     json::Value e = json::Value::object();
     e["pre"] = ok1 ? json::Value(a) : json::Value();
     e["post"] = ok2 ? json::Value(b) : json::Value();
@@ -242,8 +282,8 @@ int compare_command(const cli::Args& args) {
       if (it == post.srd.end()) continue;
       const double d = asymmetry::srd_distance(a, it->second, pre.srd_bins);
       bool ok1 = false, ok2 = false;
-      const double m1 = number_at(pre.results, {"scores", "saf", "srd", name.c_str(), "mirror_mismatch_rad"}, &ok1);
-      const double m2 = number_at(post.results, {"scores", "saf", "srd", name.c_str(), "mirror_mismatch_rad"}, &ok2);
+      const double m1 = score(pre, srd_mismatch_path(name), &ok1);
+      const double m2 = score(post, srd_mismatch_path(name), &ok2);
       json::Value e = json::Value::object();
       e["pre_post_distance_rad"] = d >= 0 ? json::Value(d) : json::Value();
       e["mirror_mismatch_pre_rad"] = ok1 ? json::Value(m1) : json::Value();
@@ -316,6 +356,9 @@ int compare_command(const cli::Args& args) {
   cj["warnings"] = json::Value::array();
   if (!rv.error.empty()) cj["warnings"].push_back(json::Value("3D views not rendered: " + rv.error));
   if (al.landmark_pairs < 3) cj["warnings"].push_back(json::Value("fewer than 3 common landmarks: alignment started from the centroids"));
+  for (const auto& w : cons.warnings) cj["warnings"].push_back(json::Value(w));
+  cj["warning_details"] = cons.details;
+  cj["consistency"] = cons.block;
 
   std::ostringstream h;
   h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym pre/post comparison</title>"
