@@ -29,6 +29,8 @@
 #include <zlib.h>
 
 #include "core/error.h"
+#include "core/memory.h"
+#include "io/volume_checks.h"
 
 namespace fs = std::filesystem;
 
@@ -486,27 +488,52 @@ const gdcm::DataSet* item(const gdcm::DataSet& ds, std::uint16_t g, std::uint16_
   return &sq->GetItem(index).GetNestedDataSet();
 }
 
+// |RescaleSlope| and |RescaleIntercept| above this map stored values far
+// outside any CT range (-1024 to ~30 000 HU) and toward float overflow.
+constexpr double kMaxRescaleMagnitude = 1e6;
+
+// `n` finite numbers from a decimal-string tag: empty when the tag is absent;
+// a present tag that does not hold them is noted in f.bad_value.
+std::vector<double> field(const gdcm::DataSet& ds, std::uint16_t g, std::uint16_t e, std::size_t n, const char* name, Frame& f) {
+  const std::string raw = str(ds, g, e);
+  if (raw.empty()) return {};
+  auto v = numbers(raw);
+  if (v.size() != n) {
+    if (f.bad_value.empty()) f.bad_value = std::string(name) + " '" + raw.substr(0, 64) + "' is not " + std::to_string(n) + " finite number(s)";
+    return {};
+  }
+  return v;
+}
+
 void read_geometry(const gdcm::DataSet& ds, Frame& f) {
-  const auto ipp = numbers(str(ds, 0x0020, 0x0032));
+  const auto ipp = field(ds, 0x0020, 0x0032, 3, "ImagePositionPatient", f);
   if (ipp.size() == 3) {
     f.ipp = {ipp[0], ipp[1], ipp[2]};
     f.has_ipp = true;
   }
-  const auto iop = numbers(str(ds, 0x0020, 0x0037));
+  const auto iop = field(ds, 0x0020, 0x0037, 6, "ImageOrientationPatient", f);
   if (iop.size() == 6) {
     f.row_dir = {iop[0], iop[1], iop[2]};
     f.col_dir = {iop[3], iop[4], iop[5]};
     f.has_iop = true;
   }
-  const auto ps = numbers(str(ds, 0x0028, 0x0030));
+  const auto ps = field(ds, 0x0028, 0x0030, 2, "PixelSpacing", f);
   if (ps.size() == 2) {
     f.spacing_j = ps[0];  // between rows
     f.spacing_i = ps[1];  // between columns
   }
-  const auto icpt = numbers(str(ds, 0x0028, 0x1052));
-  const auto slope = numbers(str(ds, 0x0028, 0x1053));
+  // Rescale: a missing or unusable value is never replaced silently (one
+  // slice read with intercept 0 is 1024 HU off); analyse() decides.
+  f.has_intercept |= !str(ds, 0x0028, 0x1052).empty();
+  f.has_slope |= !str(ds, 0x0028, 0x1053).empty();
+  const auto icpt = field(ds, 0x0028, 0x1052, 1, "RescaleIntercept", f);
+  const auto slope = field(ds, 0x0028, 0x1053, 1, "RescaleSlope", f);
   if (icpt.size() == 1) f.intercept = icpt[0];
-  if (slope.size() == 1 && slope[0] != 0) f.slope = slope[0];
+  if (slope.size() == 1) f.slope = slope[0];
+  if (f.bad_value.empty() && (slope.size() == 1 && (slope[0] == 0 || std::abs(slope[0]) > kMaxRescaleMagnitude)))
+    f.bad_value = "RescaleSlope " + str(ds, 0x0028, 0x1053) + " is zero or beyond 1e6";
+  if (f.bad_value.empty() && icpt.size() == 1 && std::abs(icpt[0]) > kMaxRescaleMagnitude)
+    f.bad_value = "RescaleIntercept " + str(ds, 0x0028, 0x1052) + " is beyond 1e6";
 }
 
 // Functional group macros of an enhanced multi-frame image (shared, then per frame).
@@ -549,8 +576,14 @@ ScanResult scan(const std::string& path) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
     for (auto it = fs::recursive_directory_iterator(path, fs::directory_options::skip_permission_denied, ec);
-         !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
-      if (it->is_regular_file(ec)) files.push_back(it->path().string());
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      std::error_code e2;
+      if (it->is_regular_file(e2)) {
+        files.push_back(it->path().string());
+      } else if (!it->is_directory(e2)) {  // FIFO (blocks forever), device (never ends), socket: never opened
+        if (res.special_files++ == 0) res.first_special = it->path().string();
+      }
+    }
   } else {
     files.push_back(path);
   }
@@ -668,6 +701,54 @@ ScanResult scan(const std::string& path) {
   return res;
 }
 
+namespace {
+
+// Geometry no scan has (docs/ingest.md, "Geometry"): a position beyond 10 m
+// (an x of 1e300 mm ended in SIGFPE in the mesh stage), a pixel size outside
+// 1 micrometre to 10 cm, orientation vectors that are not unit and orthogonal.
+std::string gfmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+std::string absurd_geometry(const Frame& f) {
+  for (int a = 0; a < 3; ++a)
+    if (!(std::abs(f.ipp[a]) <= checks::kMaxPositionMm))
+      return "ImagePositionPatient " + gfmt(f.ipp[a]) + " mm is beyond 10 m";
+  for (double sp : {f.spacing_i, f.spacing_j})
+    if (!(sp >= checks::kMinSpacingMm && sp <= checks::kMaxSpacingMm))
+      return "PixelSpacing " + gfmt(sp) + " mm is outside 0.001 to 100 mm";
+  if (std::abs(dot(f.row_dir, f.col_dir)) > 1e-3 || std::abs(norm(f.row_dir) - 1) > 1e-3 || std::abs(norm(f.col_dir) - 1) > 1e-3)
+    return "ImageOrientationPatient is not orthonormal";
+  return "";
+}
+
+// RescaleSlope and RescaleIntercept are Type 1 in the CT Image module
+// (PS3.3 C.8.2.1): present on some slices of a series but not on others is an
+// error naming the first slice without; absent from every slice, the stored
+// values are taken as HU (slope 1, intercept 0) with a warning.
+std::string rescale_presence(const Series& s, std::vector<std::string>& warnings) {
+  for (const char* tag : {"RescaleIntercept", "RescaleSlope"}) {
+    const bool intercept = tag[7] == 'I';
+    std::size_t with = 0;
+    const Frame* without = nullptr;
+    for (const auto& f : s.frames) {
+      const bool has = intercept ? f.has_intercept : f.has_slope;
+      with += has;
+      if (!has && !without) without = &f;
+    }
+    if (with == 0)
+      warnings.push_back(std::string(tag) + " missing from every slice (Type 1 in CT): stored values taken as HU with " +
+                         (intercept ? "intercept 0" : "slope 1") + "; check --hu-offset");
+    else if (without)
+      return without->file + ": " + tag + " missing while other slices of the series have it";
+  }
+  return "";
+}
+
+}  // namespace
+
 Layout analyse(const Series& s) {
   Layout L;
   auto refuse = [&](const std::string& why) {
@@ -678,10 +759,13 @@ Layout analyse(const Series& s) {
   if (s.missing_pixel_data) return refuse(s.missing_pixel_data_file + ": DICOM image without pixel data");
   if (s.samples_per_pixel != 1) return refuse("colour images (" + std::to_string(s.samples_per_pixel) + " samples per pixel) are not CT");
   for (const auto& f : s.frames) {
+    if (!f.bad_value.empty()) return refuse(f.file + ": " + f.bad_value);
     if (!f.has_ipp || !f.has_iop)
       return refuse(f.file + ": ImagePositionPatient or ImageOrientationPatient missing; the slice cannot be placed");
     if (!(f.spacing_i > 0) || !(f.spacing_j > 0)) return refuse(f.file + ": PixelSpacing missing or not positive");
+    if (const std::string bad = absurd_geometry(f); !bad.empty()) return refuse(f.file + ": " + bad);
   }
+  if (const std::string bad = rescale_presence(s, L.warnings); !bad.empty()) return refuse(bad);
   if (s.frames.size() < kMinSlices)
     return refuse(s.frames.size() == 1 ? "a single slice, not a volume"
                                        : std::to_string(s.frames.size()) + " slices, too few for a head CT volume");
@@ -826,6 +910,68 @@ void unpack_stored(const char* buf, std::size_t n, unsigned stored, bool is_sign
   }
 }
 
+// The frame size a compressed stream declares in its own header (JPEG and
+// JPEG-LS: the SOF segment; JPEG 2000: the SIZ segment): the codec allocates
+// by it. False when the fragment does not start a stream or none is found.
+bool declared_frame_size(const unsigned char* b, std::size_t n, unsigned& rows, unsigned& cols) {
+  if (n >= 4 && b[0] == 0xFF && b[1] == 0xD8) {  // JPEG / JPEG-LS: walk the marker segments to the SOF
+    for (std::size_t p = 2; p + 4 <= n;) {
+      if (b[p] != 0xFF) return false;
+      const unsigned m = b[p + 1];
+      if (m == 0xFF) { ++p; continue; }  // fill byte
+      if (m == 0x01 || (m >= 0xD0 && m <= 0xD8)) { p += 2; continue; }  // no length
+      const bool sof = (m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC) || m == 0xF7;  // F7: JPEG-LS
+      if (sof) {
+        if (p + 9 > n) return false;
+        rows = (b[p + 5] << 8) | b[p + 6];
+        cols = (b[p + 7] << 8) | b[p + 8];
+        return true;
+      }
+      if (m == 0xDA) return false;  // scan data before any frame header
+      p += 2 + ((b[p + 2] << 8) | b[p + 3]);
+    }
+    return false;
+  }
+  auto be32 = [&](std::size_t p) { return (std::uint32_t{b[p]} << 24) | (b[p + 1] << 16) | (b[p + 2] << 8) | b[p + 3]; };
+  for (std::size_t p = 0; p + 24 <= n && p < 4096; ++p)  // JPEG 2000 codestream, bare or in a JP2 box: SOC + SIZ
+    if (b[p] == 0xFF && b[p + 1] == 0x4F && b[p + 2] == 0xFF && b[p + 3] == 0x51) {
+      const std::uint32_t x = be32(p + 8), y = be32(p + 12), x0 = be32(p + 16), y0 = be32(p + 20);
+      cols = x >= x0 ? x - x0 : 0;
+      rows = y >= y0 ? y - y0 : 0;
+      return true;
+    }
+  return false;
+}
+
+// Every compressed frame's own header must declare the Rows x Columns of the
+// DICOM header (found by an attacker: a 17 kB slice whose JPEG claimed 60000 x
+// 60000 made the codec allocate 18 GB before failing).
+void check_compressed_frames(const gdcm::SequenceOfFragments& sf, const std::string& file, unsigned rows, unsigned cols) {
+  for (unsigned i = 0; i < sf.GetNumberOfFragments(); ++i) {
+    const gdcm::ByteValue* bv = sf.GetFragment(i).GetByteValue();
+    if (!bv || !bv->GetPointer()) continue;
+    unsigned r = 0, c = 0;
+    const auto* b = reinterpret_cast<const unsigned char*>(bv->GetPointer());
+    if (!declared_frame_size(b, std::min<std::size_t>(bv->GetLength(), 1 << 16), r, c)) continue;
+    if (r != rows || c != cols)
+      throw Error(ExitCode::InputInvalid, file + ": compressed pixel data declares a " + std::to_string(r) + " x " +
+                                              std::to_string(c) + " frame, the DICOM header " + std::to_string(rows) + " x " +
+                                              std::to_string(cols) + " (Rows x Columns)");
+  }
+}
+
+// BitsAllocated, BitsStored and PixelRepresentation are read from the first
+// file of a series; every file must agree (its pixel data is unpacked by them).
+void check_pixel_format(const gdcm::DataSet& ds, const Series& s, const std::string& file) {
+  unsigned v = 0;
+  if (u16(ds, 0x0028, 0x0100, v) && v != s.bits_allocated)
+    throw Error(ExitCode::InputInvalid, file + ": BitsAllocated " + std::to_string(v) + " differs from the series' " +
+                                            std::to_string(s.bits_allocated));
+  if (u16(ds, 0x0028, 0x0103, v) && v != s.pixel_representation)
+    throw Error(ExitCode::InputInvalid, file + ": PixelRepresentation " + std::to_string(v) + " differs from the series' " +
+                                            std::to_string(s.pixel_representation));
+}
+
 // Stored values of every frame of a file, as doubles, frame-major.
 std::vector<double> decode_file(const Series& s, const std::string& file, unsigned rows, unsigned cols, unsigned n_frames) {
   gdcm::ImageReader ir;
@@ -848,12 +994,22 @@ std::vector<double> decode_file(const Series& s, const std::string& file, unsign
   if (!ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010)))
     throw Error(ExitCode::InputInvalid, file + ": DICOM image without pixel data");
   const gdcm::DataElement& pd = ds.GetDataElement(gdcm::Tag(0x7fe0, 0x0010));
+  check_pixel_format(ds, s, file);
   if (const gdcm::ByteValue* bv = pd.GetByteValue()) {
     if (bv->GetLength() < n * bytes)
       throw Error(ExitCode::InputInvalid, file + ": pixel data holds " + std::to_string(bv->GetLength()) +
                                               " bytes, Rows x Columns x frames needs " + std::to_string(n * bytes) +
                                               " (truncated file or wrong Rows/Columns)");
-  } else if (!pd.GetSequenceOfFragments()) {
+    // Longer than Rows x Columns x frames x BitsAllocated/8 (one pad byte
+    // for an odd length aside): the header does not describe these pixels
+    // (BitsAllocated 8 over 16-bit data read as noise, "no bone").
+    if (bv->GetLength() > n * bytes + 1)
+      throw Error(ExitCode::InputInvalid, file + ": pixel data holds " + std::to_string(bv->GetLength()) +
+                                              " bytes, Rows x Columns x frames x BitsAllocated/8 is " + std::to_string(n * bytes) +
+                                              " (wrong BitsAllocated, Rows, Columns or NumberOfFrames)");
+  } else if (const gdcm::SequenceOfFragments* sf = pd.GetSequenceOfFragments()) {
+    check_compressed_frames(*sf, file, rows, cols);
+  } else {
     throw Error(ExitCode::InputInvalid, file + ": DICOM image without pixel data");
   }
   const unsigned long len = img.GetBufferLength();
@@ -910,7 +1066,7 @@ bool safe_to_parse(const std::string& file) {
   return !ec && structure_ok(file, size);
 }
 
-Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings) {
+Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings, std::uint64_t memory_budget) {
   quiet_gdcm();
   const AbortGuard guard;
   AbortGuard::reading(s.frames.empty() ? std::string("series") : s.frames.front().file + " (or another file of its series)");
@@ -1015,6 +1171,10 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
             static_cast<std::size_t>(std::floor((hi_c - lo_c) / g.spacing[1] + 1e-6)) + 1,
             static_cast<std::size_t>(std::floor((t.back() - t.front()) / g.spacing[2] + 1e-6)) + 1};
   g.origin = lo_r * r + lo_c * c + t.front() * n;
+  checks::check_budget(f0.file, "the resampled grid of its series (" + std::to_string(g.size[0]) + " x " +
+                                    std::to_string(g.size[1]) + " x " + std::to_string(g.size[2]) + ")",
+                       static_cast<std::uint64_t>(std::min(1e19L, static_cast<long double>(g.size[0]) * g.size[1] * g.size[2])),
+                       memory_budget);
   v.hu.assign(g.voxel_count(), static_cast<float>(kAir));
   auto sample = [&](std::size_t frame, const Vec3& p) -> double {
     const Frame& fr = s.frames[frame];

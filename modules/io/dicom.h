@@ -36,6 +36,8 @@ struct Frame {
   double spacing_i = 0, spacing_j = 0;  // mm along row_dir / col_dir (PixelSpacing[1], [0])
   unsigned rows = 0, cols = 0;
   double slope = 1, intercept = 0;
+  bool has_slope = false, has_intercept = false;  // the tag is present (value valid or not)
+  std::string bad_value;  // "RescaleSlope 'inf'": a present tag whose value is unusable
   int instance = 0;
 };
 
@@ -59,6 +61,8 @@ struct ScanResult {
   std::size_t dicom_files = 0;       // parsed as DICOM
   std::size_t non_image_files = 0;   // DICOM without an image (SR, RTSTRUCT, ...)
   std::size_t unreadable_files = 0;  // could not be opened (permissions)
+  std::size_t special_files = 0;     // entries that are not regular files (FIFOs, devices, sockets): skipped
+  std::string first_special;
   std::string first_unreadable;
   std::string first_non_dicom;       // for messages
 };
@@ -101,6 +105,9 @@ int choose(const ScanResult& scan, const std::vector<Layout>& layouts, std::stri
 // and padding, and builds the volume on an orthogonal grid (resampling where
 // the layout says so). Throws ms::Error(InputInvalid) naming the file on
 // corrupt or missing pixel data.
-Volume assemble(const Series& series, const Layout& layout, std::vector<std::string>& warnings);
+// memory_budget (bytes, 0: none): a resampled grid whose run would exceed it
+// is refused before it is allocated (docs/ingest.md, "Memory budget").
+Volume assemble(const Series& series, const Layout& layout, std::vector<std::string>& warnings,
+                std::uint64_t memory_budget = 0);
 
 }  // namespace ms::io::dicom

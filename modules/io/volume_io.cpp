@@ -29,12 +29,15 @@
 #include <zlib.h>
 #include <sstream>
 #include <cerrno>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/memory.h"
 #include "core/sha256.h"
 #include "io/dicom.h"
 #include "io/itk_geometry.h"
+#include "io/volume_checks.h"
 
 namespace fs = std::filesystem;
 
@@ -174,6 +177,31 @@ std::string volume_kind(const std::string& path) {
   return "";
 }
 
+// Non-finite or absurd geometry went on to crash the mesh stage (an origin of
+// 1e300 mm: SIGFPE in CGAL's exact arithmetic) or to read as "no bone" (a
+// spacing of 1e30 mm). Limits in checks:: (docs/ingest.md, "Geometry").
+void check_geometry(const Geometry& g, const std::string& path) {
+  auto fmt = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return std::string(b);
+  };
+  for (int a = 0; a < 3; ++a) {
+    if (!(std::abs(g.origin[a]) <= checks::kMaxPositionMm))
+      throw Error(ExitCode::InputInvalid, path + ": origin " + fmt(g.origin[a]) + " mm is not finite or beyond 10 m");
+    if (!(g.spacing[a] >= checks::kMinSpacingMm && g.spacing[a] <= checks::kMaxSpacingMm))
+      throw Error(ExitCode::InputInvalid, path + ": voxel spacing " + fmt(g.spacing[a]) + " mm is outside 0.001 to 100 mm");
+  }
+  const auto& d = g.direction;
+  bool ok = true;
+  for (double v : d) ok &= std::isfinite(v);
+  for (int c = 0; c < 3 && ok; ++c)
+    ok &= std::abs(std::sqrt(d[c] * d[c] + d[3 + c] * d[3 + c] + d[6 + c] * d[6 + c]) - 1) <= checks::kDirectionTolerance;
+  const double det = d[0] * (d[4] * d[8] - d[5] * d[7]) - d[1] * (d[3] * d[8] - d[5] * d[6]) + d[2] * (d[3] * d[7] - d[4] * d[6]);
+  if (!ok || !(std::abs(std::abs(det) - 1) <= checks::kDirectionTolerance))
+    throw Error(ExitCode::InputInvalid, path + ": direction (orientation) matrix is not finite or not orthonormal");
+}
+
 void finish(LoadedScan& scan, double hu_offset) {
   auto& hu = scan.volume.hu;
   std::size_t bad = 0;
@@ -200,6 +228,7 @@ void finish(LoadedScan& scan, double hu_offset) {
     if (!(g.spacing[a] > 0) || !std::isfinite(g.spacing[a]))
       throw Error(ExitCode::InputInvalid, scan.info.path + ": voxel spacing is not positive");
   }
+  check_geometry(g, scan.info.path);
   // Provenance hash: SHA-256 over the per-slice SHA-256 digests (hex) of the
   // float32 HU slices, x fastest; slices hash in parallel (docs/ingest.md).
   {
@@ -251,6 +280,10 @@ LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
     if (chosen < 0) throw Error(ExitCode::InputInvalid, path + ": " + why);
   }
   const dicom::Series& s = sc.series[chosen];
+  const std::uint64_t budget = checks::effective_budget(opt.max_memory_bytes);
+  checks::check_budget(path, "DICOM series " + s.label + " (" + std::to_string(s.frames.front().rows) + " x " +
+                                 std::to_string(s.frames.front().cols) + " x " + std::to_string(s.frames.size()) + ")",
+                       static_cast<std::uint64_t>(s.frames.front().rows) * s.frames.front().cols * s.frames.size(), budget);
   LoadedScan scan;
   scan.info.path = path;
   scan.info.kind = "dicom";
@@ -267,7 +300,10 @@ LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
   if (sc.unreadable_files)
     scan.info.warnings.push_back(std::to_string(sc.unreadable_files) + " file(s) could not be opened (permission denied), e.g. " +
                                  sc.first_unreadable);
-  scan.volume = dicom::assemble(s, layouts[chosen], scan.info.warnings);
+  if (sc.special_files)
+    scan.info.warnings.push_back(std::to_string(sc.special_files) + " entr" + (sc.special_files == 1 ? "y" : "ies") +
+                                 " that are not regular files (FIFOs, devices, sockets) skipped, e.g. " + sc.first_special);
+  scan.volume = dicom::assemble(s, layouts[chosen], scan.info.warnings, budget);
   return scan;
 }
 
@@ -564,42 +600,73 @@ void check_meta_header(const std::string& path) {
   }
 }
 
-void check_declared_size(const std::string& path, const char* what) {
+// What the header declares (ITK's ImageIO reads it, no pixels), before any
+// allocation: one scalar component, at most three dimensions (a fourth of
+// size 1 is fine), and a run on that many voxels within the memory budget.
+// Returns the bytes of stored voxel data declared (0 when the header cannot
+// be read: the reader that follows says why).
+std::uint64_t check_declared_size(const std::string& path, const char* what, std::uint64_t budget) {
   StderrCapture quiet;  // the reader that follows reports any failure
   const itk::ImageIOBase::Pointer io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::CommonEnums::IOFileMode::ReadMode);
-  if (!io) return;  // the reader says why
+  if (!io) return 0;  // the reader says why
   io->SetFileName(path);
   long double voxels = 1, stored = 0;
+  unsigned components = 1, ndims = 0;
+  std::vector<std::size_t> dims;
   try {
     io->ReadImageInformation();
-    for (unsigned d = 0; d < io->GetNumberOfDimensions(); ++d) voxels *= static_cast<long double>(io->GetDimensions(d));
-    stored = voxels * io->GetNumberOfComponents() * io->GetComponentSize();  // throws for an unknown pixel type
+    ndims = io->GetNumberOfDimensions();
+    for (unsigned d = 0; d < ndims; ++d) dims.push_back(io->GetDimensions(d));
+    for (auto n : dims) voxels *= static_cast<long double>(n);
+    components = io->GetNumberOfComponents();
+    stored = voxels * components * io->GetComponentSize();  // throws for an unknown pixel type
   } catch (const std::exception&) {  // itk::ExceptionObject or a library's std::length_error
-    return;  // the reader says why
+    return 0;  // the reader says why
   }
-  const long double memory = static_cast<long double>(::sysconf(_SC_PHYS_PAGES)) * ::sysconf(_SC_PAGE_SIZE);
-  auto mb = [](long double b) { return std::to_string(static_cast<long long>(std::min(b / 1e6L, 1e15L))) + " MB"; };
-  if (memory > 0 && voxels * sizeof(float) + stored > memory)
-    throw Error(ExitCode::InputInvalid, path + ": " + what + " header declares " + mb(voxels * sizeof(float)) +
-                                            " of voxels, more than this machine's memory (" + mb(memory) + ")");
+  if (components != 1)
+    throw Error(ExitCode::InputInvalid, path + ": " + what + " has " + std::to_string(components) +
+                                            " components per voxel (colour, vector or complex), not one number per voxel as a CT");
+  for (unsigned d = 3; d < ndims; ++d)
+    if (dims[d] > 1)
+      throw Error(ExitCode::InputInvalid, path + ": " + what + " holds " + std::to_string(dims[d]) + " volumes along dimension " +
+                                              std::to_string(d + 1) + "; MandiSym reads one 3D CT");
+  const auto v = voxels >= 1.8e19L ? UINT64_MAX : static_cast<std::uint64_t>(voxels);
+  checks::check_budget(path, std::string(what) + " header", v, budget);
   const auto on_disk = bytes_on_disk(path);
-  if (!on_disk) return;  // a list, a pattern or a missing data file: the reader decides
+  auto mb = [](long double b) { return std::to_string(static_cast<long long>(std::min(b / 1e6L, 1e15L))) + " MB"; };
+  // Backstop for encodings the data check does not follow (text, hex, bzip2):
+  // deflate cannot compress beyond ~1032:1.
   constexpr long double kMaxInflation = 1100;
-  if (stored > kMaxInflation * std::max<long double>(static_cast<long double>(*on_disk), 1))
+  if (on_disk && stored > kMaxInflation * std::max<long double>(static_cast<long double>(*on_disk), 1))
     throw Error(ExitCode::InputInvalid, path + ": " + what + " header declares " + mb(stored) + " of voxel data but the file" +
                                             " holds " + std::to_string(*on_disk) + " bytes");
+  return stored >= 1.8e19L ? UINT64_MAX : static_cast<std::uint64_t>(stored);
 }
 
-// Everything checked before ITK reads a volume file (masks and label maps too).
-void check_before_reading(const std::string& path, const char* what) {
+// Everything checked before ITK reads a volume file (masks and label maps
+// too), in an order that names the first problem: the file itself, NIfTI
+// header and payload, MetaImage header syntax, the data files a detached
+// header names, the declared size against the budget, and that the data holds it.
+void check_before_reading(const std::string& path, const char* what, const ReadOptions& opt) {
   const std::string kind = volume_kind(path);
-  if (kind == "nifti") check_nifti_payload(path);
+  const std::uint64_t budget = checks::effective_budget(opt.max_memory_bytes);
+  checks::require_regular_file(path, path, "the file");
+  if (kind == "nifti") {
+    checks::check_nifti_header(path, budget);
+    check_nifti_payload(path);
+  }
   if (kind == "meta") check_meta_header(path);
-  check_declared_size(path, what);
+  const checks::DataLayout layout = checks::data_layout(path, kind, opt.allow_external_data_files);
+  const std::uint64_t declared = check_declared_size(path, what, budget);
+  checks::check_data_holds(path, kind, layout, declared);
 }
 
-LoadedScan read_volume_file(const std::string& path, const std::string& kind) {
-  check_before_reading(path, "volume");
+LoadedScan read_volume_file(const std::string& path, const std::string& kind, const ReadOptions& opt) {
+  check_before_reading(path, "volume", opt);
+  // qform and sform disagreeing (one flipped, say): ITK picks one silently.
+  std::string why;
+  if (kind == "nifti" && opt.orientation.empty() && checks::nifti_orientation(path, &why) == checks::NiftiOrientation::Disagree)
+    throw Error(ExitCode::InputInvalid, path + ": NIfTI " + why + "; give the orientation with --orientation");
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
   std::string note;
@@ -613,7 +680,8 @@ LoadedScan read_volume_file(const std::string& path, const std::string& kind) {
         fs::remove(f, ec);
       }
     } remove_patched{patched};
-    check_declared_size(patched, "volume");
+    const std::uint64_t declared = check_declared_size(patched, "volume", checks::effective_budget(opt.max_memory_bytes));
+    checks::check_data_holds(path, kind, checks::data_layout(path, kind, opt.allow_external_data_files), declared);
     reader = itk::ImageFileReader<FloatImage>::New();
     reader->SetFileName(patched);
     if (const std::string failed2 = try_update(reader); !failed2.empty())
@@ -662,6 +730,8 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   register_factories();
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file or directory");
+  // Only folders and regular files: a FIFO blocks the reader forever, a device never ends.
+  if (struct stat st {}; ::stat(path.c_str(), &st) == 0 && !S_ISDIR(st.st_mode)) checks::require_regular_file(path, path, "INPUT");
   const bool dir = fs::is_directory(path, ec);
   if (::access(path.c_str(), dir ? (R_OK | X_OK) : R_OK) != 0)
     throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
@@ -670,7 +740,7 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   if (kind.empty())
     scan = read_dicom(path, options);  // a folder, or a single (e.g. enhanced multi-frame) DICOM file
   else
-    scan = read_volume_file(path, kind);
+    scan = read_volume_file(path, kind, options);
   if (!options.orientation.empty()) {
     if (scan.info.kind == "dicom")
       throw Error(ExitCode::Usage, path + ": --orientation applies to volume files; DICOM carries its own orientation");
@@ -680,6 +750,12 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
                              scan.info.warnings.end());
   }
   finish(scan, options.hu_offset);
+  // Left and right are never guessed: a NIfTI without qform or sform code
+  // needs --orientation (checked last, so that any other problem is named first).
+  std::string why;
+  if (kind == "nifti" && options.orientation.empty() && checks::nifti_orientation(path, &why) == checks::NiftiOrientation::NotCoded)
+    throw Error(ExitCode::InputInvalid, path + ": NIfTI has no orientation (qform_code = sform_code = 0): left and right are " +
+                                            "unknown and never guessed; give the axes with --orientation (e.g. LPS)");
   return scan;
 }
 
@@ -719,7 +795,7 @@ FloatImage::Pointer read_float_image(const std::string& path, const char* what) 
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file");
   if (::access(path.c_str(), R_OK) != 0) throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
-  check_before_reading(path, what);
+  check_before_reading(path, what, ReadOptions{});
   auto reader = itk::ImageFileReader<FloatImage>::New();
   reader->SetFileName(path);
   if (const std::string failed = try_update(reader); !failed.empty())

@@ -2,6 +2,7 @@
 // patient LPS millimetres; see METHOD.md §0.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,16 @@ struct ReadOptions {
   // P/A, S/I), replacing the file's direction (for files without anatomical
   // orientation). Empty: keep the file's.
   std::string orientation;
+  // Memory budget in bytes for the whole run (docs/ingest.md, "Memory
+  // budget"): every declared image size is checked against it before anything
+  // is decoded or allocated (estimated peak = voxels x 4 B x
+  // ms::kPipelinePeakFactor). 0: ms::default_memory_budget_bytes() (a
+  // fraction of this machine's memory, cgroup limit or RLIMIT_AS). The CLI's
+  // --max-memory SIZE goes here through ms::parse_memory_size.
+  std::uint64_t max_memory_bytes = 0;
+  // NRRD "data file:" / MetaImage "ElementDataFile" may name files outside
+  // the header's folder (after symlinks). Default: refused (exit 4).
+  bool allow_external_data_files = false;
 };
 
 struct LoadedScan {
