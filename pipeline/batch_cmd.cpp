@@ -4,6 +4,8 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/mman.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -14,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -22,6 +25,7 @@
 
 #include "core/error.h"
 #include "core/json.h"
+#include "pipeline/batch_support.h"
 #include "pipeline/commands.h"
 #include "reports/writers.h"
 
@@ -39,12 +43,15 @@ const cli::CommandSpec& batch_spec() {
       "separate `mandisym run` process into OUT/<id>/ (ids are sanitised into safe folder names), up to --jobs at "
       "a time. Studies whose OUT/<id>/results.json already exists and parses are skipped (resumable; `run` writes "
       "results.json last, so an interrupted study never looks complete). A failed study is recorded with its exit "
-      "code and error line, and the others go on. Ctrl-C stops launching, lets the running studies end, and still "
-      "writes the cohort files. Exit code 0 when every study succeeded, 9 when some failed (see cohort.csv), 130 when interrupted.",
+      "code and error line (a study killed by a signal as `killed`, one over --study-timeout as `timeout`), and the others "
+      "go on. Ctrl-C stops launching, interrupts the running studies, and still writes the cohort files. Exit code 0 when every study succeeded, 9 when some failed (see cohort.csv), 130 when interrupted.",
       {{"SOURCE", "folder of studies, or CSV with id,path"}},
       {{"output", "DIR", "output folder (created)", ""},
        {"jobs", "N", "studies run at once (each run also uses its own threads)", "1"},
-       {"deidentify", "", "pass --deidentify to every run", ""},
+       {"deidentify", "", "pass --deidentify to every run; study ids become pseudonyms (keyed by OUT/.deidentify-key) and "
+                          "error lines and logs are scrubbed of paths, UIDs and dates", ""},
+       {"study-timeout", "SECONDS", "kill a study's process group when it has run this long and record it as `timeout`; "
+                                    "default 600 s + 1 s per MB of the study's files; 0 = none", ""},
        {"aggregate-only", "", "run nothing: write the cohort files from the studies already in OUT (e.g. after a "
                               "Snakemake or cluster run); incomplete studies are listed as failed with their log's error", ""},
        {"quiet", "", "no progress output", ""},
@@ -57,13 +64,17 @@ namespace {
 std::atomic<bool> g_interrupted{false};
 void on_sigint(int) { g_interrupted = true; }
 
+namespace bs = batch_support;
+
 struct Study {
-  std::string id;   // safe folder name
+  std::string id;    // safe folder name (pseudonymous under --deidentify)
+  std::string name;  // as listed (folder entry or CSV id)
   std::string path;
-  std::string status = "pending";  // ok | qc_failed | failed | skipped (already done)
-  int exit_code = -1;
+  std::string status = "pending";  // ok | qc_failed | failed | killed | timeout | done-earlier | not run (interrupted)
+  int exit_code = -1;              // the child's exit code; -1: it did not exit (killed, timeout, not started): empty in cohort.csv
+  int signal = 0;                  // the signal that ended it (killed, timeout), else 0
   std::string error;
-  double seconds = 0;
+  double seconds = -1;  // wall-clock of its run; < 0: not run here
 };
 
 std::string safe_id(std::string s) {
@@ -105,7 +116,8 @@ std::vector<Study> list_studies(const std::string& source) {
     std::sort(entries.begin(), entries.end());
     for (const auto& p : entries) {
       Study st;
-      st.id = safe_id(p.filename().string());
+      st.name = p.filename().string();
+      st.id = safe_id(st.name);
       st.path = p.string();
       out.push_back(st);
     }
@@ -133,6 +145,7 @@ std::vector<Study> list_studies(const std::string& source) {
                                  ? v[static_cast<std::size_t>(ci)]
                                  : p.filename().string();
       Study st;
+      st.name = id;
       st.id = safe_id(id);
       st.path = p.string();
       out.push_back(st);
@@ -140,14 +153,17 @@ std::vector<Study> list_studies(const std::string& source) {
   } else {
     throw Error(ExitCode::InputNotFound, source + ": no such folder or CSV file");
   }
-  // Unique ids.
+  if (out.empty()) throw Error(ExitCode::InputInvalid, source + ": no studies found");
+  return out;
+}
+
+// Unique ids: a repeated id gets _2, _3, ...
+void make_ids_unique(std::vector<Study>& studies) {
   std::map<std::string, int> seen;
-  for (auto& s : out) {
+  for (auto& s : studies) {
     const int k = seen[s.id]++;
     if (k) s.id += "_" + std::to_string(k + 1);
   }
-  if (out.empty()) throw Error(ExitCode::InputInvalid, source + ": no studies found");
-  return out;
 }
 
 bool complete(const fs::path& dir) {
@@ -169,13 +185,142 @@ std::string self_exe() {
   return ec ? std::string("mandisym") : p.string();
 }
 
-std::string first_error_line(const fs::path& log) {
-  std::ifstream f(log);
+std::string first_error_line(const std::string& text) {
+  std::istringstream f(text);
   std::string line, last;
   while (std::getline(f, line))
     if (line.find("error") != std::string::npos) return line;
     else if (!line.empty()) last = line;
   return last;
+}
+
+std::string slurp_text(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+// All a descriptor holds (a study's memfd log), from its start.
+std::string read_fd(int fd) {
+  std::string out;
+  char buf[65536];
+  ::lseek(fd, 0, SEEK_SET);
+  for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) > 0;) out.append(buf, static_cast<std::size_t>(n));
+  return out;
+}
+
+std::string signal_text(int sig) {
+  const char* d = ::strsignal(sig);
+  return "signal " + std::to_string(sig) + (d ? std::string(" (") + d + ")" : std::string());
+}
+
+// One running study.
+struct Child {
+  std::size_t study;
+  int log_fd = -1;  // memfd with its stdout+stderr; written to OUT/.logs/<id>.log (scrubbed) when it ends
+  std::chrono::steady_clock::time_point start;
+  double timeout_s = 0;  // 0: none
+  bool timed_out = false, interrupted = false;
+  std::chrono::steady_clock::time_point term_sent;
+};
+
+// Starts `mandisym run` for a study in its own process group; its output goes
+// to a memfd (nothing that names the study reaches the disk before scrubbing).
+bool launch(Study& s, const std::string& exe, const fs::path& out, bool deidentify, pid_t* pid, int* log_fd) {
+  *log_fd = static_cast<int>(::syscall(SYS_memfd_create, "mandisym-study-log", MFD_CLOEXEC));
+  if (*log_fd < 0) return false;
+  std::vector<std::string> a = {exe, "run", s.path, "-o", (out / s.id).string(), "-q"};
+  if (deidentify) a.push_back("--deidentify");
+  std::vector<char*> argv;
+  for (auto& x : a) argv.push_back(x.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, *log_fd, 1);
+  posix_spawn_file_actions_adddup2(&fa, *log_fd, 2);
+  posix_spawnattr_t at;
+  posix_spawnattr_init(&at);
+  posix_spawnattr_setflags(&at, POSIX_SPAWN_SETPGROUP);  // its own group: a timeout kills it and its children
+  posix_spawnattr_setpgroup(&at, 0);
+  const int rc = posix_spawn(pid, exe.c_str(), &fa, &at, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  posix_spawnattr_destroy(&at);
+  if (rc != 0) ::close(*log_fd), *log_fd = -1;
+  return rc == 0;
+}
+
+// Records how a child ended (wait status st) and writes its log.
+void finish(Study& s, Child& c, int st, const fs::path& out, bool deidentify) {
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - c.start).count();
+  std::string log = read_fd(c.log_fd);
+  ::close(c.log_fd);
+  if (deidentify) log = bs::scrub(log, bs::identifying_strings(s.path, s.name), s.id);
+  reports::write_text_atomic((out / ".logs" / (s.id + ".log")).string(), log);
+  s.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  s.signal = WIFSIGNALED(st) ? WTERMSIG(st) : 0;
+  const std::string line = first_error_line(log);
+  if (c.timed_out) {
+    s.status = "timeout";
+    char b[160];
+    std::snprintf(b, sizeof b, "no result within --study-timeout %.0f s; its process group was killed", c.timeout_s);
+    s.error = b;
+  } else if (s.exit_code == 0 && complete(out / s.id)) {
+    s.status = "ok";
+  } else if (s.exit_code == static_cast<int>(ExitCode::QcFailed) && complete(out / s.id)) {
+    s.status = "qc_failed";  // every output written; the checks that failed are in its results.json (docs/qc.md)
+    s.error = line;
+  } else if (c.interrupted || (g_interrupted && WIFSIGNALED(st))) {
+    s.status = "not run (interrupted)";
+  } else if (WIFSIGNALED(st)) {
+    s.status = "killed";
+    s.error = "killed by " + signal_text(s.signal) + (line.empty() ? "" : ": " + line);
+  } else {
+    s.status = "failed";
+    s.error = line.empty() ? "exit code " + std::to_string(s.exit_code) : line;
+  }
+}
+
+// Signals every child's process group: SIGTERM (or SIGINT on Ctrl-C) when a
+// timeout expires, SIGKILL kKillGraceS later.
+void police(std::map<pid_t, Child>& running) {
+  const auto now = std::chrono::steady_clock::now();
+  for (auto& [pid, c] : running) {
+    const double el = std::chrono::duration<double>(now - c.start).count();
+    if (!c.timed_out && !c.interrupted && c.timeout_s > 0 && el > c.timeout_s) {
+      c.timed_out = true, c.term_sent = now;
+      ::kill(-pid, SIGTERM);
+    } else if (!c.timed_out && !c.interrupted && g_interrupted) {
+      c.interrupted = true, c.term_sent = now;
+      ::kill(-pid, SIGINT);
+    } else if ((c.timed_out || c.interrupted) && std::chrono::duration<double>(now - c.term_sent).count() > bs::kKillGraceS) {
+      ::kill(-pid, SIGKILL);
+    }
+  }
+}
+
+// Aggregate-only: a study that has no complete run. Its exit code comes from
+// OUT/.done/<id> ("EXIT SECONDS", written by workflow/Snakefile; `timeout`
+// gives 124 on expiry, 128+N for a signal) when there is one.
+void record_unfinished(Study& s, const fs::path& out) {
+  s.status = "failed";
+  const std::string log = slurp_text(out / ".logs" / (s.id + ".log"));
+  s.error = first_error_line(log);
+  std::ifstream f(out / ".done" / s.id);
+  int rc = -1;
+  double secs = -1;
+  if (f >> rc) {
+    if (f >> secs) s.seconds = secs;
+    if (rc == 124) {
+      s.status = "timeout", s.error = "no result within the workflow's study_timeout; killed";
+    } else if (rc > 128 && rc < 128 + 65) {
+      s.status = "killed", s.signal = rc - 128;
+      s.error = "killed by " + signal_text(s.signal) + (s.error.empty() ? "" : ": " + s.error);
+    } else {
+      s.exit_code = rc;
+    }
+  }
+  if (s.error.empty()) s.error = "no complete run in " + (out / s.id).string();
 }
 
 std::string fmt(double v, int prec = 3) {
@@ -204,42 +349,17 @@ std::string histogram_svg(const std::vector<double>& v, const std::string& title
   return o.str();
 }
 
-}  // namespace
-
-int batch_command(const cli::Args& args) {
-  const std::string out_s = args.get("output");
-  if (out_s.empty()) throw Error(ExitCode::Usage, "batch: -o OUT is required");
+// Runs the studies not done yet, --jobs at a time, each under its timeout
+// (--study-timeout; default from its size, batch_support.h).
+void run_studies(std::vector<Study>& studies, const cli::Args& args, const fs::path& out, std::size_t todo) {
   const int jobs = static_cast<int>(args.number("jobs", 1));
-  if (jobs < 1 || jobs > 256) throw Error(ExitCode::Usage, "batch: --jobs must be 1..256");
-  const bool quiet = args.has("quiet");
-  const fs::path out = out_s;
-  std::vector<Study> studies = list_studies(args.positional.at(0));
-  std::error_code ec;
-  fs::create_directories(out / ".logs", ec);
-  if (ec) throw Error(ExitCode::OutputFailed, out.string() + ": cannot create the output folder: " + ec.message());
-
-  struct sigaction sa {};
-  sa.sa_handler = on_sigint;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-
+  const bool quiet = args.has("quiet"), deidentify = args.has("deidentify");
+  const double fixed_timeout = args.number("study-timeout", -1);
   const std::string exe = self_exe();
   const bool tty = !quiet && isatty(STDOUT_FILENO);
   const auto t0 = std::chrono::steady_clock::now();
-  std::size_t next = 0, done = 0, todo = 0;
-  const bool aggregate_only = args.has("aggregate-only");
-  for (auto& s : studies)
-    if (complete(out / s.id)) {
-      s.status = "done-earlier", s.exit_code = 0;
-    } else if (aggregate_only) {
-      s.status = "failed";
-      s.error = first_error_line(out / ".logs" / (s.id + ".log"));
-      if (s.error.empty()) s.error = "no complete run in " + (out / s.id).string();
-    } else {
-      ++todo;
-    }
-  if (aggregate_only) next = studies.size();
-  std::map<pid_t, std::pair<std::size_t, std::chrono::steady_clock::time_point>> running;
+  std::size_t next = 0, done = 0;
+  std::map<pid_t, Child> running;
   auto progress = [&] {
     if (quiet) return;
     const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -256,83 +376,63 @@ int batch_command(const cli::Args& args) {
     while (!g_interrupted && static_cast<int>(running.size()) < jobs && next < studies.size()) {
       Study& s = studies[next++];
       if (s.status == "done-earlier") continue;
-      const fs::path log = out / ".logs" / (s.id + ".log");
-      std::vector<std::string> a = {exe, "run", s.path, "-o", (out / s.id).string(), "-q"};
-      if (args.has("deidentify")) a.push_back("--deidentify");
-      std::vector<char*> argv;
-      for (auto& x : a) argv.push_back(x.data());
-      argv.push_back(nullptr);
-      posix_spawn_file_actions_t fa;
-      posix_spawn_file_actions_init(&fa);
-      posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      posix_spawn_file_actions_adddup2(&fa, 1, 2);
       pid_t pid = -1;
-      const int rc = posix_spawn(&pid, exe.c_str(), &fa, nullptr, argv.data(), environ);
-      posix_spawn_file_actions_destroy(&fa);
-      if (rc != 0) {
+      int fd = -1;
+      if (!launch(s, exe, out, deidentify, &pid, &fd)) {
         s.status = "failed", s.error = "cannot start " + exe, ++done;
         continue;
       }
-      running[pid] = {static_cast<std::size_t>(&s - studies.data()), std::chrono::steady_clock::now()};
+      Child c;
+      c.study = static_cast<std::size_t>(&s - studies.data());
+      c.log_fd = fd;
+      c.start = std::chrono::steady_clock::now();
+      c.timeout_s = fixed_timeout >= 0 ? fixed_timeout : bs::default_timeout_s(bs::study_bytes(s.path));
+      running[pid] = c;
     }
     if (running.empty()) break;
     int st = 0;
-    const pid_t pid = waitpid(-1, &st, 0);
-    if (pid < 0) {
-      if (errno == EINTR) continue;
-      break;
+    const pid_t pid = waitpid(-1, &st, WNOHANG);
+    if (pid == 0 || (pid < 0 && errno == EINTR)) {
+      police(running);
+      ::usleep(50 * 1000);  // 50 ms: the timeout's resolution
+      continue;
     }
+    if (pid < 0) break;
     auto it = running.find(pid);
     if (it == running.end()) continue;
-    Study& s = studies[it->second.first];
-    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.second).count();
+    if (it->second.timed_out || it->second.interrupted) ::kill(-pid, SIGKILL);  // what it left in its group
+    finish(studies[it->second.study], it->second, st, out, deidentify);
     running.erase(it);
-    s.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-    if (s.exit_code == 0 && complete(out / s.id)) {
-      s.status = "ok";
-    } else if (s.exit_code == static_cast<int>(ExitCode::QcFailed) && complete(out / s.id)) {
-      s.status = "qc_failed";  // every output written; the checks that failed are in its results.json (docs/qc.md)
-      s.error = first_error_line(out / ".logs" / (s.id + ".log"));
-    } else if (g_interrupted && WIFSIGNALED(st)) {
-      s.status = "not run (interrupted)";
-    } else {
-      s.status = "failed";
-      s.error = first_error_line(out / ".logs" / (s.id + ".log"));
-      if (s.error.empty()) s.error = WIFSIGNALED(st) ? "killed by signal " + std::to_string(WTERMSIG(st)) : "exit code " + std::to_string(s.exit_code);
-    }
     ++done;
     progress();
   }
   if (tty) std::cout << "\n";
-  for (auto& s : studies)
-    if (s.status == "pending") s.status = "not run (interrupted)";
+}
 
-  // cohort.csv: id, status, exit code, error, then each study's results.csv row.
+std::string exit_code_text(const Study& s) { return s.exit_code >= 0 ? std::to_string(s.exit_code) : ""; }
+
+// cohort.csv: id, status, exit code, error, signal, seconds, then each study's results.csv row.
+void write_cohort_csv(const std::vector<Study>& studies, const std::vector<std::string>& hcols,
+                      const std::vector<std::vector<std::string>>& rows, const fs::path& out) {
   std::ostringstream csv;
-  std::string header;
-  std::vector<std::vector<std::string>> rows(studies.size());
-  for (std::size_t i = 0; i < studies.size(); ++i) {
-    std::ifstream f(out / studies[i].id / "results.csv");
-    std::string h, r;
-    if ((studies[i].status == "ok" || studies[i].status == "done-earlier") && std::getline(f, h) && std::getline(f, r)) {
-      if (header.empty()) header = h;
-      rows[i] = split_csv_line(r);
-    }
-  }
   const auto q = reports::csv_quote;
-  const auto hcols = split_csv_line(header.empty() ? reports::csv_header().substr(0, reports::csv_header().size() - 1) : header);
-  csv << "id,status,exit_code,error";
+  csv << "id,status,exit_code,error,signal,seconds";
   for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << hcols[c];  // skip study,status
   csv << "\n";
   for (std::size_t i = 0; i < studies.size(); ++i) {
     const Study& s = studies[i];
-    csv << q(s.id) << "," << q(s.status) << "," << s.exit_code << "," << q(s.error);
+    csv << q(s.id) << "," << q(s.status) << "," << exit_code_text(s) << "," << q(s.error) << ","
+        << (s.signal ? std::to_string(s.signal) : "") << "," << (s.seconds >= 0 ? fmt(s.seconds, 1) : "");
     for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << (c < rows[i].size() ? rows[i][c] : "");
     csv << "\n";
   }
   reports::write_text_atomic((out / "cohort.csv").string(), csv.str());
+}
 
-  // cohort.html: distributions, outliers (beyond 1.5 IQR), links to reports.
+// cohort.html: distributions, outliers (beyond 1.5 IQR), links to reports.
+void write_cohort_html(const std::vector<Study>& studies, const std::vector<std::string>& hcols,
+                       const std::vector<std::vector<std::string>>& rows, const fs::path& out, std::size_t n_ok,
+                       std::size_t n_failed) {
   auto column = [&](const std::string& name) {
     std::vector<std::pair<std::size_t, double>> v;
     for (std::size_t c = 0; c < hcols.size(); ++c)
@@ -356,8 +456,6 @@ int batch_command(const cli::Args& args) {
         if (val > q3 + 1.5 * iqr || val < q1 - 1.5 * iqr) outliers[i].push_back(name);
     }
   }
-  std::size_t n_ok = 0, n_failed = 0;
-  for (const auto& s : studies) (s.status == "ok" || s.status == "done-earlier" ? n_ok : n_failed)++;
   std::ostringstream h;
   h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym cohort</title><style>"
        "body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1200px;color:#1d2433;padding:0 1em}"
@@ -367,7 +465,7 @@ int batch_command(const cli::Args& args) {
        "</style></head><body>\n<h1>Cohort</h1>\n<p>"
     << studies.size() << " studies: " << n_ok << " complete, " << n_failed << " failed or not run."
     << (g_interrupted ? " <strong>Interrupted.</strong>" : "") << " Outliers: beyond 1.5 IQR of the cohort.</p>\n"
-    << "<h2>Distributions</h2>\n" << figs.str() << "<h2>Studies</h2>\n<table><tr><th>study</th><th>status</th>";
+    << "<h2>Distributions</h2>\n" << figs.str() << "<h2>Studies</h2>\n<table><tr><th>study</th><th>status</th><th>exit code</th><th>seconds</th>";
   for (std::size_t c = 2; c < hcols.size(); ++c) h << "<th>" << reports::html_escape(hcols[c]) << "</th>";
   h << "<th>outlier in</th></tr>\n";
   for (std::size_t i = 0; i < studies.size(); ++i) {
@@ -376,7 +474,9 @@ int batch_command(const cli::Args& args) {
     h << "<tr class=\"" << (ok ? (outliers.count(i) ? "out" : "") : "bad") << "\"><td class=\"l\">";
     if (ok) h << "<a href=\"" << reports::html_escape(s.id) << "/report.html\">" << reports::html_escape(s.id) << "</a>";
     else h << reports::html_escape(s.id);
-    h << "</td><td class=\"l\">" << reports::html_escape(s.status) << (s.error.empty() ? "" : ": " + reports::html_escape(s.error)) << "</td>";
+    h << "</td><td class=\"l\">" << reports::html_escape(s.status) << (s.error.empty() ? "" : ": " + reports::html_escape(s.error))
+      << "</td><td>" << exit_code_text(s) << (s.signal ? " (signal " + std::to_string(s.signal) + ")" : "") << "</td><td>"
+      << (s.seconds >= 0 ? fmt(s.seconds, 1) : "") << "</td>";
     for (std::size_t c = 2; c < hcols.size(); ++c) h << "<td>" << reports::html_escape(c < rows[i].size() ? rows[i][c] : "") << "</td>";
     std::string o;
     for (const auto& n : outliers[i]) o += (o.empty() ? "" : ", ") + n;
@@ -384,6 +484,58 @@ int batch_command(const cli::Args& args) {
   }
   h << "</table>\n</body></html>\n";
   reports::write_text_atomic((out / "cohort.html").string(), h.str());
+}
+
+}  // namespace
+
+int batch_command(const cli::Args& args) {
+  const std::string out_s = args.get("output");
+  if (out_s.empty()) throw Error(ExitCode::Usage, "batch: -o OUT is required");
+  const int jobs = static_cast<int>(args.number("jobs", 1));
+  if (jobs < 1 || jobs > 256) throw Error(ExitCode::Usage, "batch: --jobs must be 1..256");
+  if (args.number("study-timeout", 0) < 0) throw Error(ExitCode::Usage, "batch: --study-timeout must be >= 0 seconds (0 = none)");
+  const bool quiet = args.has("quiet");
+  const fs::path out = out_s;
+  std::vector<Study> studies = list_studies(args.positional.at(0));
+  std::error_code ec;
+  fs::create_directories(out / ".logs", ec);
+  if (ec) throw Error(ExitCode::OutputFailed, out.string() + ": cannot create the output folder: " + ec.message());
+  if (args.has("deidentify")) {  // pseudonymous ids: folder names often carry the patient's name
+    const std::string key = bs::deidentify_key(out);
+    for (auto& s : studies) s.id = bs::pseudonym(key, s.name);
+  }
+  make_ids_unique(studies);
+
+  struct sigaction sa {};
+  sa.sa_handler = on_sigint;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  std::size_t todo = 0;
+  const bool aggregate_only = args.has("aggregate-only");
+  for (auto& s : studies)
+    if (complete(out / s.id)) s.status = "done-earlier", s.exit_code = 0;
+    else if (aggregate_only) record_unfinished(s, out);
+    else ++todo;
+  if (!aggregate_only) run_studies(studies, args, out, todo);
+  for (auto& s : studies)
+    if (s.status == "pending") s.status = "not run (interrupted)";
+
+  std::string header;
+  std::vector<std::vector<std::string>> rows(studies.size());
+  for (std::size_t i = 0; i < studies.size(); ++i) {
+    std::ifstream f(out / studies[i].id / "results.csv");
+    std::string h, r;
+    if ((studies[i].status == "ok" || studies[i].status == "done-earlier") && std::getline(f, h) && std::getline(f, r)) {
+      if (header.empty()) header = h;
+      rows[i] = split_csv_line(r);
+    }
+  }
+  const auto hcols = split_csv_line(header.empty() ? reports::csv_header().substr(0, reports::csv_header().size() - 1) : header);
+  write_cohort_csv(studies, hcols, rows, out);
+  std::size_t n_ok = 0, n_failed = 0;
+  for (const auto& s : studies) (s.status == "ok" || s.status == "done-earlier" ? n_ok : n_failed)++;
+  write_cohort_html(studies, hcols, rows, out, n_ok, n_failed);
   if (!quiet) std::cout << "batch: " << n_ok << " complete, " << n_failed << " failed or not run; " << (out / "cohort.html").string() << std::endl;
   if (g_interrupted) return 130;
   return n_failed ? static_cast<int>(ExitCode::BatchIncomplete) : 0;
