@@ -23,6 +23,16 @@ double Args::number(const std::string& n, double def) const {
   return v;
 }
 
+double Args::number_in(const std::string& n, double def, double lo, double hi, const char* unit) const {
+  const double v = number(n, def);
+  if (v < lo || v > hi) {
+    std::ostringstream m;
+    m << "--" << n << ": " << get(n) << " is outside the allowed range [" << lo << ", " << hi << "]" << (*unit ? " " : "") << unit;
+    throw Error(ExitCode::Usage, m.str());
+  }
+  return v;
+}
+
 Vec3 Args::vec3(const std::string& n, const Vec3& def) const {
   auto it = values.find(n);
   if (it == values.end()) return def;

@@ -33,6 +33,9 @@ class Args {
   bool has(const std::string& n) const { return values.count(n) > 0; }
   std::string get(const std::string& n, const std::string& def = "") const;
   double number(const std::string& n, double def) const;   // throws Error(Usage) naming the option
+  // A number that must lie in [lo, hi] (unit: for the message); throws
+  // Error(Usage) naming the option, the value and the range.
+  double number_in(const std::string& n, double def, double lo, double hi, const char* unit) const;
   Vec3 vec3(const std::string& n, const Vec3& def) const;   // "x,y,z" or a single value for all three
 };
 

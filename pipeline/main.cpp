@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/memory.h"
+#include "liblog/library_log.h"
 #include "pipeline/commands.h"
 
 namespace {
@@ -27,6 +28,7 @@ void usage(std::ostream& o) {
 
 int main(int argc, char** argv) {
   ms::tune_allocator_for_volumes();
+  ms::liblog::route_library_messages();
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string command_line = "mandisym";
   for (const auto& a : args) command_line += " " + a;

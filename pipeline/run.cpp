@@ -5,12 +5,8 @@
 // output-only jobs run on a second thread beside the main stages: the mask
 // file and QC slices (ITK) beside surface..asymmetry, the cranial plane beside
 // asymmetry; no library is used by two threads at once.
-#include <signal.h>
-#include <unistd.h>
-
-#include <cerrno>
-
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <tuple>
 #include <cstdio>
@@ -29,6 +25,8 @@
 #include "reports/render.h"
 #include "pipeline/commands.h"
 #include "pipeline/cranial.h"
+#include "pipeline/staging.h"
+#include "liblog/library_log.h"
 #include "reference/reference.h"
 #include "reports/figures.h"
 #include "reports/writers.h"
@@ -95,67 +93,44 @@ class Stopwatch {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
-// The hidden folder inside OUTDIR where outputs are written before they are
-// moved into place. Removed on destruction unless committed; OUTDIR too when
-// this run created it and left it empty (a refused input leaves nothing).
-class Staging {
- public:
-  explicit Staging(const std::string& outdir) : outdir_(outdir) {
-    std::error_code ec;
-    created_outdir_ = !fs::exists(outdir_, ec);
-    fs::create_directories(outdir_, ec);
-    if (ec) throw Error(ExitCode::OutputFailed, outdir + ": cannot create output folder: " + ec.message());
-    dir_ = outdir_ / (".mandisym-partial-" + std::to_string(::getpid()));
-    fs::remove_all(dir_, ec);
-    remove_stale();
-    fs::create_directories(dir_ / "qc", ec);
-    if (ec) throw Error(ExitCode::OutputFailed, dir_.string() + ": cannot create: " + ec.message());
-  }
-  Staging(const Staging&) = delete;
-  Staging& operator=(const Staging&) = delete;
-  ~Staging() {
-    if (committed_) return;
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-    if (created_outdir_ && fs::is_empty(outdir_, ec)) fs::remove(outdir_, ec);
-  }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  // Staging folders of runs that were killed (Ctrl-C, a batch interrupted,
-  // out of memory) stay behind; the next run into the folder removes those
-  // whose process is gone. A live one (another run writing here) is left.
-  void remove_stale() const {
-    std::error_code ec;
-    const std::string prefix = ".mandisym-partial-";
-    std::vector<fs::path> stale;
-    for (const auto& e : fs::directory_iterator(outdir_, ec)) {
-      const std::string name = e.path().filename().string();
-      if (name.rfind(prefix, 0) != 0 || name.size() == prefix.size()) continue;
-      const std::string digits = name.substr(prefix.size());
-      if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
-      const pid_t pid = static_cast<pid_t>(std::stol(digits));
-      if (pid > 0 && pid != ::getpid() && ::kill(pid, 0) != 0 && errno == ESRCH) stale.push_back(e.path());
-    }
-    for (const auto& p : stale) fs::remove_all(p, ec);
-  }
-  // Moves everything into OUTDIR, results.json last (its presence marks a
-  // complete run).
-  void commit() {
-    std::error_code ec;
-    fs::remove_all(outdir_ / "qc", ec);
-    fs::remove(outdir_ / "results.json", ec);
-    for (const auto& entry : fs::directory_iterator(dir_)) {
-      if (entry.path().filename() == "results.json") continue;
-      fs::rename(entry.path(), outdir_ / entry.path().filename());
-    }
-    fs::rename(dir_ / "results.json", outdir_ / "results.json");
-    fs::remove_all(dir_, ec);
-    committed_ = true;
-  }
-
- private:
-  fs::path outdir_, dir_;
-  bool created_outdir_ = false, committed_ = false;
+// Every option of `run`, read and checked before the scan is (a bad value
+// costs no ingest). Ranges (docs/security.md, "Options"): edge lengths from a
+// quarter of the finest CT voxel here (0.25 mm) to the coarsest (5 mm),
+// disks and smoothing within a mandible's landmark neighbourhood (a disk
+// over 10 mm covers a condylar head, 15-20 mm wide; Dirichlet disks that
+// overlap leave no field), HU within the 12-bit CT range plus offsets.
+struct RunSettings {
+  io::ReadOptions read;
+  segmentation::Options segmentation;
+  surface::Options surface;
+  asymmetry::SafOptions saf;
+  std::string anchors;
+  int label = -1;
 };
+
+RunSettings run_settings(const cli::Args& args) {
+  RunSettings r;
+  r.read.hu_offset = args.number_in("hu-offset", 0.0, -4096, 4096, "HU");
+  r.read.series_uid = args.get("series");
+  r.read.orientation = args.get("orientation");
+  r.segmentation.bone_threshold_hu = args.number_in("bone-threshold", r.segmentation.bone_threshold_hu, -1000, 3000, "HU");
+  if (args.has("label") && !args.has("mask")) throw Error(ExitCode::Usage, "--label needs --mask");
+  const double label = args.number_in("label", -1, -1, 65535, "");
+  if (label != std::floor(label)) throw Error(ExitCode::Usage, "--label: expected a whole number");
+  r.label = static_cast<int>(label);
+  r.saf.disk_radius_mm = args.number_in("disk-radius", r.saf.disk_radius_mm, 0.1, 10, "mm");
+  r.saf.smoothing_mm = args.number_in("saf-smoothing", r.saf.smoothing_mm, 0, 30, "mm");
+  r.anchors = args.get("saf-anchors", "reference");
+  if (r.anchors != "reference" && r.anchors != "detected")
+    throw Error(ExitCode::Usage, "--saf-anchors must be reference or detected, not '" + r.anchors + "'");
+  r.surface.target_faces = static_cast<std::size_t>(args.number_in("target-faces", static_cast<double>(r.surface.target_faces), 1000, 2e6, ""));
+  r.surface.target_edge_mm = args.number_in("edge-length", r.surface.target_edge_mm, 0, 5, "mm");
+  if (r.surface.target_edge_mm > 0 && r.surface.target_edge_mm < 0.25)
+    throw Error(ExitCode::Usage, "--edge-length: " + num(r.surface.target_edge_mm) + " mm is below 0.25 mm (0 turns remeshing off)");
+  r.surface.close_handles_auto = args.get("close-handles", "auto") == "auto";
+  if (!r.surface.close_handles_auto) r.surface.close_handles_mm = args.number_in("close-handles", r.surface.close_handles_mm, 0, 10, "mm");
+  return r;
+}
 
 }  // namespace
 
@@ -164,21 +139,10 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   const std::string input = args.positional.at(0);
   const std::string outdir = args.get("output");
   if (outdir.empty()) throw Error(ExitCode::Usage, "run: -o OUTDIR is required");
-  asymmetry::SafOptions sao;
-  sao.disk_radius_mm = args.number("disk-radius", sao.disk_radius_mm);
-  sao.smoothing_mm = args.number("saf-smoothing", sao.smoothing_mm);
-  if (!(sao.disk_radius_mm > 0) || !(sao.smoothing_mm >= 0))
-    throw Error(ExitCode::Usage, "--disk-radius must be > 0 and --saf-smoothing >= 0 mm");
-  const std::string anchor_choice = args.get("saf-anchors", "reference");
-  if (anchor_choice != "reference" && anchor_choice != "detected")
-    throw Error(ExitCode::Usage, "--saf-anchors must be reference or detected, not '" + anchor_choice + "'");
-  surface::Options mo;
-  mo.target_faces = static_cast<std::size_t>(args.number("target-faces", static_cast<double>(mo.target_faces)));
-  mo.target_edge_mm = args.number("edge-length", mo.target_edge_mm);
-  mo.close_handles_auto = args.get("close-handles", "auto") == "auto";
-  if (!mo.close_handles_auto) mo.close_handles_mm = args.number("close-handles", mo.close_handles_mm);
-  if (!(mo.target_edge_mm >= 0) || !(mo.close_handles_mm >= 0) || mo.close_handles_mm > 10)
-    throw Error(ExitCode::Usage, "--edge-length must be >= 0 and --close-handles auto or within [0, 10] mm");
+  const RunSettings rs = run_settings(args);
+  asymmetry::SafOptions sao = rs.saf;
+  const std::string& anchor_choice = rs.anchors;
+  surface::Options mo = rs.surface;
   const bool quiet = args.has("quiet");
   std::ostringstream log;
   auto say = [&](const std::string& line) {
@@ -203,10 +167,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   };
 
   // 1. ingest
-  io::ReadOptions ro;
-  ro.hu_offset = args.number("hu-offset", 0.0);
-  ro.series_uid = args.get("series");
-  ro.orientation = args.get("orientation");
+  const io::ReadOptions& ro = rs.read;
   io::LoadedScan scan = io::read_scan(input, ro);
   S.scan = scan.info;
   if (deidentify) {
@@ -222,7 +183,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   Staging staging(outdir);
 
   // Stages 2-6: an error names the input it happened on.
-  segmentation::Options so;
+  const segmentation::Options& so = rs.segmentation;
   segmentation::Result seg;
   surface::Result surf;
   asymmetry::Regions regions;
@@ -235,13 +196,9 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   std::future<reference::CranialResult> cranial;
   try {
     // 2. segmentation
-    so.bone_threshold_hu = args.number("bone-threshold", so.bone_threshold_hu);
     if (args.has("mask")) {
-      const double label = args.number("label", -1);
-      seg = segmentation::from_label_map(scan.volume.geom, io::read_label_map(args.get("mask")), static_cast<int>(label),
-                                         args.get("mask"));
+      seg = segmentation::from_label_map(scan.volume.geom, io::read_label_map(args.get("mask")), rs.label, args.get("mask"));
     } else {
-      if (args.has("label")) throw Error(ExitCode::Usage, "--label needs --mask");
       seg = segmentation::segment_mandible(scan.volume, so);
     }
     S.segmentation_method = seg.method;
@@ -461,6 +418,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     reports::write_text_atomic(staging.path("report.html"), reports::report_html(S, figures, views, views_note));
     reports::write_text_atomic(staging.path("results.csv"), reports::csv_header() + reports::csv_row(S, S.qc.status == "fail" ? "qc_failed" : "ok"));
     for (const auto& w : S.warnings) log << "warning: " << w << "\n";
+    for (const auto& m : liblog::take_library_messages()) log << "library: " << m << "\n";
     {
       char b[64];
       std::snprintf(b, sizeof b, "total %.2f s", S.total_s);

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/files.h"
 #include "reports/interpretation.h"
 #include "reports/viewer.h"
 #include "surface/surface.h"
@@ -110,15 +111,7 @@ std::string html_escape(const std::string& s) {
 }
 
 void write_text_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".partial";
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    f << text;
-    if (!f) throw Error(ExitCode::OutputFailed, path + ": cannot write");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw Error(ExitCode::OutputFailed, path + ": cannot write: " + ec.message());
+  write_file_atomic(path, text);
 }
 
 namespace {

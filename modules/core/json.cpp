@@ -33,12 +33,43 @@ void write_number(std::string& out, double d) {
   out.append(buf, res.ptr);
 }
 
-// Takes a UTF-8 string and appends it quoted and escaped to `out`
-// (", \ and control characters escaped; other bytes copied as is).
+// Length of the well-formed UTF-8 sequence starting at s[i] (RFC 3629:
+// shortest form, no surrogates, at most U+10FFFF), or 0 when it is not one.
+std::size_t utf8_sequence(const std::string& s, std::size_t i) {
+  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[k]); };
+  const unsigned char c = b(i);
+  if (c < 0x80) return 1;
+  std::size_t n = c >= 0xC2 && c <= 0xDF ? 2 : c >= 0xE0 && c <= 0xEF ? 3 : c >= 0xF0 && c <= 0xF4 ? 4 : 0;
+  if (n == 0 || i + n > s.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k)
+    if ((b(i + k) & 0xC0) != 0x80) return 0;
+  if (c == 0xE0 && b(i + 1) < 0xA0) return 0;   // overlong
+  if (c == 0xED && b(i + 1) >= 0xA0) return 0;  // surrogate
+  if (c == 0xF0 && b(i + 1) < 0x90) return 0;   // overlong
+  if (c == 0xF4 && b(i + 1) >= 0x90) return 0;  // beyond U+10FFFF
+  return n;
+}
+
+// Takes a string and appends it quoted and escaped to `out` (", \ and control
+// characters escaped; well-formed UTF-8 copied as is; any other byte, e.g.
+// of a file name in another encoding, written as U+FFFD, so that the output
+// is always valid JSON text).
 void write_string(std::string& out, const std::string& s) {
   static const char kHex[] = "0123456789abcdef";
   out += '"';
-  for (char ch : s) {
+  for (std::size_t i = 0; i < s.size();) {
+    const std::size_t n = utf8_sequence(s, i);
+    if (n == 0) {
+      out += "\xEF\xBF\xBD";
+      ++i;
+      continue;
+    }
+    if (n > 1) {
+      out.append(s, i, n);
+      i += n;
+      continue;
+    }
+    const char ch = s[i++];
     const auto c = static_cast<unsigned char>(ch);
     switch (c) {
       case '"': out += "\\\""; break;
@@ -315,35 +346,13 @@ class Parser {
   }
 
   // Validates one UTF-8 multi-byte sequence whose lead byte is at pos_ and
-  // copies it to out (rejects overlong forms, surrogates, > U+10FFFF).
+  // copies it to out (utf8_sequence: rejects overlong forms, surrogates,
+  // > U+10FFFF).
   void copy_utf8_sequence(std::string& out) {
-    const auto b0 = static_cast<unsigned char>(s_[pos_]);
-    int len;
-    uint32_t cp;
-    if (b0 >= 0xC2 && b0 <= 0xDF) {
-      len = 2;
-      cp = b0 & 0x1F;
-    } else if (b0 >= 0xE0 && b0 <= 0xEF) {
-      len = 3;
-      cp = b0 & 0x0F;
-    } else if (b0 >= 0xF0 && b0 <= 0xF4) {
-      len = 4;
-      cp = b0 & 0x07;
-    } else {
-      fail("invalid UTF-8 byte in string");
-    }
-    if (pos_ + static_cast<size_t>(len) > s_.size()) fail("truncated UTF-8 sequence");
-    for (int i = 1; i < len; ++i) {
-      const auto b = static_cast<unsigned char>(s_[pos_ + static_cast<size_t>(i)]);
-      if ((b & 0xC0) != 0x80) fail("invalid UTF-8 sequence in string");
-      cp = (cp << 6) | (b & 0x3F);
-    }
-    if ((len == 3 && cp < 0x800) || (len == 4 && cp < 0x10000) || cp > 0x10FFFF ||
-        (cp >= 0xD800 && cp <= 0xDFFF)) {
-      fail("invalid UTF-8 sequence in string");
-    }
-    out.append(s_, pos_, static_cast<size_t>(len));
-    pos_ += static_cast<size_t>(len);
+    const std::size_t len = utf8_sequence(s_, pos_);
+    if (len == 0) fail("invalid UTF-8 sequence in string");
+    out.append(s_, pos_, len);
+    pos_ += len;
   }
 
   // Parses a quoted string at pos_; returns its decoded UTF-8 contents.

@@ -2,6 +2,7 @@
 // self-intersection removal, isotropic remeshing, outward orientation
 // (docs/surface.md). No VTK or ITK headers here.
 #include "surface/surface.h"
+#include "core/error.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
@@ -19,6 +20,7 @@
 #include <array>
 #include <cstdio>
 #include <iterator>
+#include <cmath>
 #include <set>
 #include <vector>
 
@@ -82,9 +84,22 @@ FacePairs remove_self_intersections_near(SM& sm, const FacePairs& pairs, std::si
 
 }  // namespace
 
+// At most this many self-intersecting triangle pairs per triangle before
+// repair (1 %): see repair_and_remesh.
+constexpr double kMaxIntersectingPairsPerFace = 0.01;
+// Patient coordinates beyond 10 m are not a scanner's (mm).
+constexpr double kMaxCoordinateMm = 1e4;
+
 RepairReport repair_and_remesh(Mesh& mesh, const RepairOptions& opt) {
   RepairReport rep;
   DebugLap lap("MANDISYM_DEBUG_SURFACE", "surface");
+  // CGAL's exact predicates convert every coordinate to a rational: a
+  // non-finite one raises SIGFPE inside GMP. Scan geometry is checked at
+  // ingest; this keeps the stage safe on its own.
+  for (const auto& v : mesh.vertices)
+    for (double c : v)
+      if (!(std::abs(c) <= kMaxCoordinateMm))
+        throw Error(ExitCode::GeometryFailed, "the surface has a vertex at a non-finite or absurd coordinate (beyond 10 m)");
   std::vector<K::Point_3> points;
   points.reserve(mesh.vertices.size());
   for (const auto& v : mesh.vertices) points.emplace_back(v[0], v[1], v[2]);
@@ -109,6 +124,15 @@ RepairReport repair_and_remesh(Mesh& mesh, const RepairOptions& opt) {
 
   rep.holes_filled = fill_holes(sm);
   rep.self_intersections_before = count_self_intersections(sm);
+  if (lap.on()) std::fprintf(stderr, "  surface   %zu self-intersecting pairs in %zu faces before repair\n", rep.self_intersections_before, sm.number_of_faces());
+  // Degenerate input (docs/surface.md, "Repair"): the surface of a voxel
+  // mask does not intersect itself (0 pairs on every real scan here); a few
+  // pairs come from decimation. Thousands per hundred faces are noise or a
+  // corrupt mask, on which CGAL's repair runs for minutes.
+  if (static_cast<double>(rep.self_intersections_before) > kMaxIntersectingPairsPerFace * static_cast<double>(sm.number_of_faces()))
+    throw Error(ExitCode::GeometryFailed, "the surface intersects itself in " + std::to_string(rep.self_intersections_before) +
+                                              " triangle pairs (of " + std::to_string(sm.number_of_faces()) +
+                                              " triangles): not the surface of a bone (noise, or a corrupt mask)");
   if (rep.self_intersections_before > 0) CGAL::Polygon_mesh_processing::experimental::remove_self_intersections(sm);
   lap("  holes, intersections");
 

@@ -14,13 +14,14 @@
 #include <vtkPolyData.h>
 #include <vtkPolyDataConnectivityFilter.h>
 #include <vtkQuadricDecimation.h>
-#include <vtkSTLWriter.h>
 #include <vtkSmartPointer.h>
 #include <vtkTriangleFilter.h>
 #include <vtkXMLPolyDataReader.h>
 #include <vtkXMLPolyDataWriter.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
@@ -29,6 +30,7 @@
 #include "core/debug_lap.h"
 #include "core/distance_transform.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "core/topology.h"
 
 namespace ms::surface {
@@ -656,27 +658,54 @@ void write_vtp(const Mesh& mesh, const PointArrays& arrays, const std::string& p
     for (std::size_t i = 0; i < values.size(); ++i) arr->SetValue(static_cast<vtkIdType>(i), values[i]);
     pd->GetPointData()->AddArray(arr);
   }
+  // Written to memory, then to disk by a checked writer: VTK 9.1's XML
+  // writer frees an invalid pointer when the disk fills mid-write.
   auto w = Ptr<vtkXMLPolyDataWriter>::New();
-  w->SetFileName(path.c_str());
+  w->WriteToOutputStringOn();
   w->SetInputData(pd);
   w->SetDataModeToBinary();
   if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write VTP");
+  write_file_atomic(path, w->GetOutputString());
 }
 
+// Binary STL (80-byte header, triangle count, then per triangle its unit
+// normal, three vertices as float32 and a zero attribute word), little endian.
 void write_stl(const Mesh& mesh, const std::string& path) {
-  auto w = Ptr<vtkSTLWriter>::New();
-  w->SetFileName(path.c_str());
-  w->SetInputData(to_polydata(mesh));
-  w->SetFileTypeToBinary();
-  if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write STL");
+  constexpr std::size_t kHeaderBytes = 80, kTriangleBytes = 50;
+  if (mesh.faces.size() > 0xffffffffull) throw Error(ExitCode::OutputFailed, path + ": too many triangles for STL");
+  std::string out(kHeaderBytes + 4 + kTriangleBytes * mesh.faces.size(), '\0');
+  const std::string header = "MandiSym mandible surface, patient LPS, mm";
+  out.replace(0, header.size(), header);
+  auto put_u32 = [&](std::size_t at, std::uint32_t v) {
+    for (int b = 0; b < 4; ++b) out[at + b] = static_cast<char>((v >> (8 * b)) & 0xffu);
+  };
+  auto put_f32 = [&](std::size_t at, double v) {
+    const float f = static_cast<float>(v);
+    std::uint32_t u;
+    std::memcpy(&u, &f, 4);
+    put_u32(at, u);
+  };
+  put_u32(kHeaderBytes, static_cast<std::uint32_t>(mesh.faces.size()));
+  for (std::size_t t = 0; t < mesh.faces.size(); ++t) {
+    const auto& f = mesh.faces[t];
+    const Vec3 &a = mesh.vertices[f[0]], &b = mesh.vertices[f[1]], &c = mesh.vertices[f[2]];
+    Vec3 n = cross(b - a, c - a);
+    const double len = norm(n);
+    n = len > 0 ? Vec3{n[0] / len, n[1] / len, n[2] / len} : Vec3{0, 0, 0};
+    std::size_t at = kHeaderBytes + 4 + kTriangleBytes * t;
+    for (const Vec3* v : std::array<const Vec3*, 4>{&n, &a, &b, &c})
+      for (int k = 0; k < 3; ++k, at += 4) put_f32(at, (*v)[k]);
+  }
+  write_file_atomic(path, out);
 }
 
 void write_ply(const Mesh& mesh, const std::string& path) {
   auto w = Ptr<vtkPLYWriter>::New();
-  w->SetFileName(path.c_str());
+  w->WriteToOutputStringOn();
   w->SetInputData(to_polydata(mesh));
   w->SetFileTypeToBinary();
   if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write PLY");
+  write_file_atomic(path, w->GetOutputString());
 }
 
 Mesh read_vtp(const std::string& path) {

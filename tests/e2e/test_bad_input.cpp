@@ -13,8 +13,11 @@
 #include <gtest/gtest.h>
 #include <fcntl.h>
 #include <grp.h>
+#include <sys/file.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <csignal>
 #include <unistd.h>
 
 #include <cmath>
@@ -29,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "core/json.h"
 #include "tests/support/dicom_forge.h"
 
 namespace fs = std::filesystem;
@@ -86,7 +90,10 @@ struct RunResult {
 // Runs `mandisym ARGS...` (fork/exec, no shell); stdout discarded, stderr captured.
 // as_nobody: when the test runs as root, the binary runs as uid/gid 65534 so
 // that file permissions apply (root ignores them).
-RunResult run_binary(const std::vector<std::string>& args, const fs::path& scratch, bool as_nobody = false) {
+// file_size_limit > 0: RLIMIT_FSIZE in bytes (a full disk as the writer sees
+// it: EFBIG; SIGXFSZ is ignored as a shell's `trap "" XFSZ` would).
+RunResult run_binary(const std::vector<std::string>& args, const fs::path& scratch, bool as_nobody = false,
+                     rlim_t file_size_limit = 0) {
   RunResult r;
   r.command = kBin;
   for (const auto& a : args) r.command += " " + a;
@@ -97,6 +104,11 @@ RunResult run_binary(const std::vector<std::string>& args, const fs::path& scrat
     const int err = ::open(errf.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (out >= 0) ::dup2(out, 1);
     if (err >= 0) ::dup2(err, 2);
+    if (file_size_limit > 0) {
+      ::signal(SIGXFSZ, SIG_IGN);
+      const rlimit lim{file_size_limit, file_size_limit};
+      if (::setrlimit(RLIMIT_FSIZE, &lim) != 0) ::_exit(126);
+    }
     if (as_nobody && ::geteuid() == 0) {
       if (::setgroups(0, nullptr) != 0 || ::setgid(65534) != 0 || ::setuid(65534) != 0) ::_exit(126);
     }
@@ -123,10 +135,10 @@ RunResult run_binary(const std::vector<std::string>& args, const fs::path& scrat
 
 // `mandisym run INPUT -o OUTDIR [extra...]`
 RunResult run_on(const fs::path& input, const fs::path& out, const std::vector<std::string>& extra = {},
-                 bool as_nobody = false) {
+                 bool as_nobody = false, rlim_t file_size_limit = 0) {
   std::vector<std::string> args{"run", input.string(), "-o", out.string(), "--quiet", "--no-figures"};
   args.insert(args.end(), extra.begin(), extra.end());
-  return run_binary(args, out, as_nobody);
+  return run_binary(args, out, as_nobody, file_size_limit);
 }
 
 // For the permission cases: run unprivileged; skip when that is impossible.
@@ -769,6 +781,116 @@ TEST(BadInput, ElementLongerThanTheFile) {
   fs::create_directories(in);
   std::ofstream(in / "x.dcm", std::ios::binary).write(f.data(), static_cast<std::streamsize>(f.size()));
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- outputs and options (docs/security.md)
+
+namespace {
+
+const fs::path kSampleSeries = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom" / "symmetric" / "dicom";
+
+// Found by attack: option values that ran for minutes (--edge-length 0.02:
+// 110 s, 8 GB) or gave a null score with a misleading warning
+// (--disk-radius 1e9). Ranges are checked before the input is even looked at:
+// a path that does not exist still gives the usage error (2), not 3.
+TEST(BadInput, OptionsOutsideTheirRangesAreRefusedBeforeIngest) {
+  TempCase t;
+  const fs::path missing = t / "no_such_scan";
+  for (const auto& [option, value] : std::vector<std::pair<std::string, std::string>>{
+           {"--edge-length", "0.02"}, {"--edge-length", "50"}, {"--disk-radius", "1e9"}, {"--disk-radius", "0"},
+           {"--target-faces", "10"}, {"--bone-threshold", "1e9"}, {"--hu-offset", "-1e6"}, {"--saf-smoothing", "1000"}})
+    expect_refused(run_on(missing, t.out(), {option, value}), 2, t.out(), {option, value});
+}
+
+// Found by attack: a full disk made VTK's XML writer free an invalid pointer
+// (SIGSEGV in vtkXMLUnstructuredDataWriter) and left the staging folder;
+// at other sizes VTK's coloured log came first on stderr. Now: exit 7, one
+// line naming the file, nothing left in OUTDIR (a file size limit stands in
+// for the full disk: every write beyond it fails with EFBIG).
+TEST(BadInput, FullDiskWhileWritingOutputsExits7WithOneLine) {
+  TempCase t;
+  for (rlim_t limit : {rlim_t{20000}, rlim_t{400000}}) {
+    SCOPED_TRACE("file size limit " + std::to_string(limit));
+    const RunResult r = run_on(kSampleSeries, t.out(), {}, false, limit);
+    expect_refused(r, 7, t.out(), {"cannot write"});
+    EXPECT_FALSE(fs::exists(t.out())) << "OUTDIR made by the failed run is left behind";
+  }
+}
+
+// A staging-looking folder as `mandisym` leaves one behind, with its marker.
+fs::path fake_staging(const fs::path& outdir, const std::string& name, const std::string& token) {
+  const fs::path d = outdir / name;
+  fs::create_directories(d / "qc");
+  std::ofstream(d / ".mandisym-staging") << "mandisym staging folder\ntoken=" << token << "\nhost=elsewhere\npid=99\n";
+  return d;
+}
+
+// Found by attack: a run deleted every folder in OUTDIR named
+// .mandisym-partial-<digits> whose PID was not alive (a user's folder, or the
+// run's own input), and a second host's run deleted the first one's live
+// staging (PID namespaces differ). And a non-UTF-8 input path made
+// results.json invalid UTF-8. One run checks both: only the stale staging
+// folder (marker with the token of its name, lock free) is removed; the
+// decoys and a live staging folder (its marker locked, as by a run on
+// another host) stay; results.json is valid UTF-8 with U+FFFD for the byte.
+TEST(BadInput, StaleStagingIsRemovedDecoysAndLiveRunsStayNonUtf8PathIsValidJson) {
+  TempCase t;
+  const fs::path in = t / "scan_\xff_name";
+  fs::create_directories(in);
+  for (const auto& e : fs::directory_iterator(kSampleSeries)) fs::copy_file(e.path(), in / e.path().filename());
+  const fs::path out = t.out();
+  fs::create_directories(out / ".mandisym-partial-12345" / "data");  // a user's folder, old-style name
+  std::ofstream(out / ".mandisym-partial-12345" / "data" / "keep.txt") << "mine";
+  const fs::path stale = fake_staging(out, ".mandisym-partial-elsewhere-99-0123456789abcdef", "0123456789abcdef");
+  const fs::path live = fake_staging(out, ".mandisym-partial-otherhost-7-fedcba9876543210", "fedcba9876543210");
+  const fs::path wrong_token = fake_staging(out, ".mandisym-partial-elsewhere-98-00000000000000aa", "00000000000000bb");
+  const int live_fd = ::open((live / ".mandisym-staging").c_str(), O_RDONLY);
+  ASSERT_GE(live_fd, 0);
+  ASSERT_EQ(::flock(live_fd, LOCK_EX), 0);  // held across fork/exec by the open file description, as a live run holds it
+  const RunResult r = run_on(in, out);
+  ::close(live_fd);
+  ASSERT_TRUE(r.exited && r.code == 0) << r.err;
+  EXPECT_FALSE(fs::exists(stale)) << "stale staging folder not removed";
+  EXPECT_TRUE(fs::exists(live / ".mandisym-staging")) << "a live run's staging folder was removed";
+  EXPECT_TRUE(fs::exists(wrong_token)) << "a folder whose marker does not carry its token was removed";
+  EXPECT_TRUE(fs::exists(out / ".mandisym-partial-12345" / "data" / "keep.txt")) << "a user's folder was removed";
+  std::ifstream f(out / "results.json", std::ios::binary);
+  std::stringstream text;
+  text << f.rdbuf();
+  ms::json::Value j;
+  ASSERT_NO_THROW(j = ms::json::Value::parse(text.str())) << "results.json is not valid JSON / UTF-8";
+  EXPECT_NE(j["input"]["path"].as_string().find("\xEF\xBF\xBD"), std::string::npos);
+  for (const auto& e : fs::directory_iterator(out))  // this run's own staging folder is gone
+    if (e.path() != stale && e.path() != live && e.path() != wrong_token)
+      EXPECT_NE(e.path().filename().string().rfind(".mandisym-partial-", 0) == 0 && fs::exists(e.path() / ".mandisym-staging"), true)
+          << e.path();
+}
+
+// Found by attack: a 512 kB MetaImage of random bytes was still in CGAL's
+// self-intersection repair after 280 s. The surface of a voxel mask does not
+// intersect itself; one that does everywhere is refused (6).
+TEST(BadInput, NoiseVolumeIsRefusedNotRepairedForMinutes) {
+  TempCase t;
+  const fs::path raw = t / "noise.raw";
+  {
+    std::vector<std::int16_t> v(64 * 64 * 64);
+    std::uint32_t h = 2463534242u;  // xorshift32, fixed seed
+    for (auto& x : v) {
+      h ^= h << 13, h ^= h >> 17, h ^= h << 5;
+      x = static_cast<std::int16_t>(h & 0xffffu);
+    }
+    std::ofstream(raw, std::ios::binary).write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * 2));
+  }
+  const fs::path in = t / "noise.mhd";
+  std::ofstream(in) << "ObjectType = Image\nNDims = 3\nDimSize = 64 64 64\nElementSpacing = 1 1 1\nElementType = MET_SHORT\n"
+                       "ElementByteOrderMSB = False\nElementDataFile = noise.raw\n";
+  const RunResult r = run_on(in, t.out(), {"--orientation", "LPS"});
+  SCOPED_TRACE(r.err);
+  ASSERT_TRUE(r.exited);
+  EXPECT_TRUE(r.code == 4 || r.code == 5 || r.code == 6) << "noise accepted or crashed: exit " << r.code;
+  expect_refused(r, r.code, t.out(), {in.string()});
 }
 
 }  // namespace

@@ -355,21 +355,31 @@ TEST(EndToEnd, HeadCutBySideOfTheScanStopsOrWarns) {
   fs::remove_all(out);
 }
 
-// A run killed mid-way leaves its hidden staging folder; the next run into
-// the same folder removes it when its process is gone, and leaves one whose
-// process is alive (PID 1 always is) alone.
+// A run killed mid-way (SIGKILL: no clean-up runs) leaves its hidden staging
+// folder; the next run into the same folder removes it, because its marker's
+// lock died with it (docs/security.md, "Output folder"). A folder that only
+// looks like an old staging folder (no marker) is left alone.
 TEST(EndToEnd, NextRunRemovesStagingFoldersOfKilledRuns) {
   const fs::path out = temp_dir("stale_out");
-  const fs::path dead = out / ".mandisym-partial-999999999", live = out / ".mandisym-partial-1";
-  fs::create_directories(dead / "qc");
-  fs::create_directories(live);
-  std::ofstream(dead / "mandible.stl") << "left by a killed run";
+  const fs::path decoy = out / ".mandisym-partial-999999999";
+  fs::create_directories(decoy);
+  std::ofstream(decoy / "notes.txt") << "a user's folder";
+  const std::string series = (kSamples / "symmetric" / "dicom").string();
+  // Start a run, wait for its staging folder (with marker), kill it.
+  const std::string killer = "bash -c '" + kBin + " run " + series + " -o " + out.string() +
+                             " -q --no-figures --no-cranial & p=$!; for i in $(seq 600); do "
+                             "ls " + out.string() + "/.mandisym-partial-*-*/.mandisym-staging >/dev/null 2>&1 && break; sleep 0.05; done; "
+                             "kill -9 $p; wait $p 2>/dev/null; true'";
+  ASSERT_EQ(std::system(killer.c_str()), 0);
+  std::vector<fs::path> left;
+  for (const auto& e : fs::directory_iterator(out))
+    if (e.path() != decoy && e.path().filename().string().rfind(".mandisym-partial-", 0) == 0) left.push_back(e.path());
+  ASSERT_EQ(left.size(), 1u) << "the killed run left no staging folder";
   std::string err;
-  ASSERT_EQ(run("run " + (kSamples / "symmetric" / "dicom").string() + " -o " + out.string() + " --no-figures --no-cranial -q", &err), 0)
-      << err;
+  ASSERT_EQ(run("run " + series + " -o " + out.string() + " --no-figures --no-cranial -q", &err), 0) << err;
   EXPECT_TRUE(fs::exists(out / "results.json"));
-  EXPECT_FALSE(fs::exists(dead));
-  EXPECT_TRUE(fs::exists(live));
+  EXPECT_FALSE(fs::exists(left[0])) << "the killed run's staging folder is still there";
+  EXPECT_TRUE(fs::exists(decoy / "notes.txt")) << "a folder without a staging marker was removed";
   fs::remove_all(out);
 }
 
