@@ -35,7 +35,11 @@ const cli::CommandSpec& compare_spec() {
       "the fit). Writes compare.json, compare.html (self-contained), post_aligned.vtp with the per-vertex "
       "`change_mm` (signed distance of aligned POST to PRE, + where POST lies outside PRE) and qc/ figures. "
       "Landmarks POST's detector missed or misplaced are transferred from PRE (--transfer-landmarks; compare.json "
-      "`landmark_transfer`), and POST's bilateral measurements are recomputed with them.",
+      "`landmark_transfer`), and POST's bilateral measurements are recomputed with them. Run folders are read field by "
+      "field: a wrong type, a non-finite or absurd (beyond 10 m) coordinate or a degenerate surface is exit 4 naming the "
+      "file and field. POST dated before PRE, the same scan twice, or mandibles unlike one patient's (volume ratio > "
+      "1.25, ramus landmarks > 5 mm RMS after rigid alignment) are warned on stderr and in compare.json `warnings`, "
+      "`warning_details` and `consistency` (docs/batch.md).",
       {{"PRE", "the earlier scan or run folder"}, {"POST", "the later scan or run folder"}},
       {{"output", "DIR", "output folder (created)", ""},
        {"transfer-landmarks", "WHEN", "move PRE's landmarks onto POST by local ISI matching + RANSAC + ICP: auto = where "

@@ -14,6 +14,7 @@ snakemake -s "$SRC/workflow/Snakefile" --profile "$SRC/workflow/profiles/local" 
   --config source="$WORK/studies" out="$WORK/out" mandisym="$BIN" > "$WORK/snakemake.log" 2>&1 || { cat "$WORK/snakemake.log"; exit 1; }
 csv="$WORK/out/cohort.csv"
 for s in sym ramus posed; do grep -q "^\"$s\",\"done-earlier\",0," "$csv" || { echo "FAIL: $s not complete"; cat "$csv"; exit 1; }; done
-grep -q '^"empty","failed",' "$csv" || { echo "FAIL: the empty study is not listed as failed"; cat "$csv"; exit 1; }
+grep -q '^"empty","failed",4,' "$csv" || { echo "FAIL: the empty study is not listed as failed with its exit code 4"; cat "$csv"; exit 1; }
+grep -Eq '^0 [0-9]+$' "$WORK/out/.done/sym" || { echo "FAIL: .done/sym does not hold 'EXIT SECONDS'"; cat "$WORK/out/.done/sym"; exit 1; }
 grep -q 'href="sym/report.html"' "$WORK/out/cohort.html" || { echo "FAIL: cohort.html has no link"; exit 1; }
 echo "ok: snakemake workflow: 3 studies complete, 1 failed and listed"
