@@ -19,6 +19,7 @@
 #include "asymmetry/measures.h"
 #include "asymmetry/saf.h"
 #include "core/error.h"
+#include "core/memory.h"
 #include "geometry/mesh_geometry.h"
 #include "io/volume_io.h"
 #include "landmarks/landmarks.h"
@@ -49,6 +50,9 @@ const cli::CommandSpec& run_spec() {
        {"hu-offset", "HU", "added to every voxel after the file's own rescale (e.g. -1024 for HU+1024 data)", "0"},
        {"series", "UID", "series to use when the folder holds several (see mandisym inspect)", "finest CT series covering the scan"},
        {"orientation", "CODE", "volume files: where the i, j, k axes point, e.g. LPS or LAI (for files without orientation)", "from the file"},
+       {"max-memory", "SIZE", "memory budget of this run, e.g. 2G or 800M: a scan whose estimated peak (voxels x 4 B x 5) exceeds "
+                              "it is refused before it is decoded (docs/security.md)", "75 % of this machine's (or cgroup's) memory"},
+       {"allow-external-data", "", "volume headers (.nhdr, .mhd) may name data files outside their own folder", ""},
        {"bone-threshold", "HU", "bone threshold for segmentation", "250"},
        {"mask", "FILE", "use this segmentation instead of the automatic one (label map in any ITK format)", ""},
        {"label", "N", "with --mask: the mandible's label (TotalSegmentator craniofacial_structures: 1)", "the only label"},
@@ -113,6 +117,8 @@ RunSettings run_settings(const cli::Args& args) {
   r.read.hu_offset = args.number_in("hu-offset", 0.0, -4096, 4096, "HU");
   r.read.series_uid = args.get("series");
   r.read.orientation = args.get("orientation");
+  if (args.has("max-memory")) r.read.max_memory_bytes = parse_memory_size(args.get("max-memory"));
+  r.read.allow_external_data_files = args.has("allow-external-data");
   r.segmentation.bone_threshold_hu = args.number_in("bone-threshold", r.segmentation.bone_threshold_hu, -1000, 3000, "HU");
   if (args.has("label") && !args.has("mask")) throw Error(ExitCode::Usage, "--label needs --mask");
   const double label = args.number_in("label", -1, -1, 65535, "");

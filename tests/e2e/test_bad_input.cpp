@@ -894,3 +894,16 @@ TEST(BadInput, NoiseVolumeIsRefusedNotRepairedForMinutes) {
 }
 
 }  // namespace
+
+namespace {
+
+// The memory budget (--max-memory, docs/security.md): a scan whose estimated
+// peak exceeds it is refused before its pixels are decoded; a bad size is a
+// usage error.
+TEST(BadInput, ScanOverTheMemoryBudgetIsRefusedBeforeDecoding) {
+  TempCase t;
+  expect_refused(run_on(kSampleSeries, t.out(), {"--max-memory", "20M"}), 4, t.out(), {"--max-memory", "memory budget"});
+  expect_refused(run_on(kSampleSeries, t.out(), {"--max-memory", "lots"}), 2, t.out(), {"--max-memory", "'lots'"});
+}
+
+}  // namespace
