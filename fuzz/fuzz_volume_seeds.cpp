@@ -2,6 +2,7 @@
 // format the product reads (NIfTI, NRRD, MetaImage; NIfTI also gzipped) and a
 // uint8 mask, each prefixed by the format byte fuzz_volume expects.
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -47,5 +48,32 @@ int main(int argc, char** argv) {
     }
   }
   fs::remove_all(tmp);
+  // Headers with the data-file forms and encodings fuzz_volume provides
+  // files for (format byte 0xFE: .nhdr, 0xFF: .mhd; 1: .nrrd, 2: .mha attached).
+  const std::string nrrd = "NRRD0004\ntype: float\ndimension: 3\nspace: left-posterior-superior\nsizes: 6 5 4\n"
+                           "space directions: (0.8,0,0) (0,0.9,0) (0,0,2.5)\nendian: little\n";
+  const std::string meta = "ObjectType = Image\nNDims = 3\nDimSize = 6 5 4\nElementSpacing = 0.8 0.9 2.5\n"
+                           "ElementType = MET_FLOAT\n";
+  std::string raw(6 * 5 * 4 * 4, '\0');
+  for (std::size_t i = 0; i < raw.size() / 4; ++i) {
+    const float x = static_cast<float>(-1000 + 37 * static_cast<int>(i % 60));
+    std::memcpy(&raw[i * 4], &x, 4);
+  }
+  const std::pair<const char*, std::string> headers[] = {
+      {"nhdr_raw", "\xfe" + nrrd + "encoding: raw\ndata file: data.raw\n"},
+      {"nhdr_gzip", "\xfe" + nrrd + "encoding: gzip\ndata file: data.gz\n"},
+      {"nhdr_list", "\xfe" + nrrd + "encoding: raw\ndata file: LIST 2\ndata1.raw\ndata2.raw\n"},
+      {"nhdr_pattern", "\xfe" + nrrd + "encoding: raw\ndata file: data%d.raw 1 2 1 2\n"},
+      {"nhdr_outside", "\xfe" + nrrd + "encoding: raw\ndata file: ../outside.raw\n"},
+      {"nhdr_short", "\xfe" + nrrd + "encoding: raw\ndata file: data1.raw\n"},
+      {"mhd_raw", "\xff" + meta + "ElementDataFile = data.raw\n"},
+      {"mhd_zlib_fake", "\xff" + meta + "CompressedData = True\nElementDataFile = data.raw\n"},
+      {"mhd_list", "\xff" + meta + "ElementDataFile = LIST 2\ndata1.raw\ndata2.raw\n"},
+      {"mhd_pattern", "\xff" + meta + "ElementDataFile = data%d.raw 1 2 1 2\n"},
+      {"mhd_outside", "\xff" + meta + "ElementDataFile = ../outside.raw\n"},
+      {"nrrd_raw_attached", "\x01" + nrrd + "encoding: raw\n\n" + raw},
+      {"mha_raw_attached", "\x02" + meta + "ElementDataFile = LOCAL\n" + raw},
+  };
+  for (const auto& [name, bytes] : headers) std::ofstream(out / (std::string(name) + ".seed"), std::ios::binary) << bytes;
   return 0;
 }
