@@ -32,6 +32,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/array_order.h"
 #include "core/error.h"
 #include "core/memory.h"
 #include "core/sha256.h"
@@ -726,6 +727,19 @@ std::array<double, 9> direction_from_code(const std::string& code, const std::st
 
 }  // namespace
 
+namespace {
+
+// Brings a grid and its values to the canonical array order (core/array_order.h).
+template <class T>
+void canonical_order(Geometry& g, std::vector<T>& values) {
+  const AxisReorder order = canonical_reorder(g);
+  if (order.identity()) return;
+  values = reordered_values(values, g, order);
+  g = reordered(g, order);
+}
+
+}  // namespace
+
 LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   register_factories();
   std::error_code ec;
@@ -749,6 +763,7 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
                                             [](const std::string& w) { return w.find("not anatomical") != std::string::npos; }),
                              scan.info.warnings.end());
   }
+  canonical_order(scan.volume.geom, scan.volume.hu);
   finish(scan, options.hu_offset);
   // Left and right are never guessed: a NIfTI without qform or sform code
   // needs --orientation (checked last, so that any other problem is named first).
@@ -817,6 +832,7 @@ Mask read_mask(const std::string& path) {
   const float* buf = img->GetBufferPointer();
   m.data.resize(m.geom.voxel_count());
   for (std::size_t i = 0; i < m.data.size(); ++i) m.data[i] = buf[i] != 0;
+  canonical_order(m.geom, m.data);
   return m;
 }
 
@@ -832,6 +848,7 @@ LabelMap read_label_map(const std::string& path) {
       throw Error(ExitCode::InputInvalid, path + ": label map value " + std::to_string(v) + " is not a label");
     m.labels[i] = static_cast<std::int32_t>(v);
   }
+  canonical_order(m.geom, m.labels);
   return m;
 }
 
@@ -878,6 +895,11 @@ std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, co
     set("0008|0008", "DERIVED\\SECONDARY\\AXIAL");
     set("0008|0020", spec.study_date);
     set("0008|0021", spec.study_date);
+    set("0008|0022", spec.study_date);   // AcquisitionDate
+    set("0008|0023", spec.study_date);   // ContentDate
+    set("0008|0012", spec.study_date);   // InstanceCreationDate
+    for (const char* tag : {"0008|0030", "0008|0031", "0008|0032", "0008|0033", "0008|0013"}) set(tag, spec.study_time);
+    set("0020|0012", "1");               // AcquisitionNumber
     set("0008|0070", spec.manufacturer);
     set("0008|1090", spec.model);
     set("0008|1030", spec.study_description);

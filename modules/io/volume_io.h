@@ -61,6 +61,10 @@ struct DicomSeriesSpec {
   std::string study_description = "MandiSym phantom";
   std::string series_description = "MandiSym synthetic head CT";
   std::string study_date = "20260101";
+  // StudyTime, SeriesTime, AcquisitionTime, ContentTime and the instance
+  // creation time of every slice (one value per series: a converter such as
+  // dcm2niix splits a series whose slices differ in them).
+  std::string study_time = "120000";
   std::string manufacturer = "MandiSym";
   std::string model = "phantom";
   std::string kernel = "STANDARD";
