@@ -900,6 +900,11 @@ std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, co
     set("0008|0012", spec.study_date);   // InstanceCreationDate
     for (const char* tag : {"0008|0030", "0008|0031", "0008|0032", "0008|0033", "0008|0013"}) set(tag, spec.study_time);
     set("0020|0012", "1");               // AcquisitionNumber
+    set("0020|0010", "1");               // StudyID
+    set("0018|5100", "HFS");             // PatientPosition (head first supine), Type 2C in CT
+    set("0020|0060", "");                // Laterality, Type 2C: the head is not a paired structure
+    set("0020|1040", "");                // PositionReferenceIndicator, Type 2: none for a phantom
+    set("0018|0060", "");                // KVP, Type 2: a phantom has no tube voltage
     set("0008|0070", spec.manufacturer);
     set("0008|1090", spec.model);
     set("0008|1030", spec.study_description);

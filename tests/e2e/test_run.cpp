@@ -994,3 +994,51 @@ TEST(EndToEnd, OneScanStoredFiveWaysGivesIdenticalNumbers) {
 }
 
 }  // namespace
+
+namespace {
+
+// Output of a shell command (stdout and stderr), "" when it cannot run.
+std::string shell_output(const std::string& cmd) {
+  std::string out;
+  if (FILE* p = ::popen((cmd + " 2>&1").c_str(), "r")) {
+    char buf[4096];
+    while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) out.append(buf, n);
+    ::pclose(p);
+  }
+  return out;
+}
+
+bool have(const std::string& tool) { return std::system(("command -v " + tool + " > /dev/null 2>&1").c_str()) == 0; }
+
+// N, "the phantom's DICOM": series- and study-level attributes are the same on
+// every slice, so dcm2niix makes one volume of each series (it made 26 of the
+// sample: every slice had its own library-stamped StudyTime), and dciodvfy
+// (dicom3tools) finds no error against the CT Image IOD.
+TEST(EndToEnd, WrittenSeriesAreOneVolumeForDcm2niixAndValidCtImages) {
+  if (!have("dcm2niix")) GTEST_SKIP() << "dcm2niix not installed (scripts/install-deps installs it)";
+  const fs::path dir = temp_dir("dcm2niix");
+  fs::create_directories(dir);
+  ASSERT_EQ(run("phantom -o " + (dir / "phantom").string() + " --spacing 2 --yaw 5 --no-preview"), 0);
+  for (const fs::path& series : {kSamples / "symmetric" / "dicom", kSamples / "ramus_L_plus4mm" / "dicom", dir / "phantom" / "dicom"}) {
+    SCOPED_TRACE(series.string());
+    const fs::path out = dir / ("nii_" + std::to_string(std::hash<std::string>{}(series.string())));
+    fs::create_directories(out);
+    const std::string log = shell_output("dcm2niix -z n -f v -o " + out.string() + " " + series.string());
+    std::size_t volumes = 0, files = 0;
+    for (const auto& e : fs::directory_iterator(out)) volumes += e.path().extension() == ".nii";
+    for (const auto& e : fs::directory_iterator(series)) files += e.is_regular_file();
+    EXPECT_EQ(volumes, 1u) << log;
+    EXPECT_NE(log.find("Convert " + std::to_string(files) + " DICOM"), std::string::npos) << log;
+    if (!have("dciodvfy")) continue;
+    for (const auto& e : fs::directory_iterator(series)) {
+      const std::string v = shell_output("dciodvfy " + e.path().string());
+      EXPECT_NE(v.find("CTImage"), std::string::npos) << v;
+      EXPECT_EQ(v.find("\nError"), std::string::npos) << e.path() << ":\n" << v;
+      EXPECT_NE(v.rfind("Error", 0), 0u) << v;
+      break;  // one slice per series: the attributes are written alike
+    }
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
