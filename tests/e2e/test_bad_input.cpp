@@ -9,15 +9,16 @@
 //      offending path (the input given, and the file inside it when the
 //      problem is one file);
 //   3. no crash: death by a signal or exit code 1 (internal error) fails;
-//   4. OUTDIR holds no results.json and no report.html afterwards.
+//   4. OUTDIR holds no results.json and no report.html afterwards;
+//   5. within the hostile-input corpus budget: no hang (the 60 s guard did not
+//      fire) and a peak RSS below 2 GB.
+// The runner and the checks are shared with the other hostile suites
+// (tests/support/binary_run.h); scripts/hostile-corpus tabulates every case.
 #include <gtest/gtest.h>
 #include <fcntl.h>
-#include <grp.h>
 #include <sys/file.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-#include <csignal>
 #include <unistd.h>
 
 #include <cmath>
@@ -33,6 +34,7 @@
 #include <vector>
 
 #include "core/json.h"
+#include "tests/support/binary_run.h"
 #include "tests/support/dicom_forge.h"
 
 namespace fs = std::filesystem;
@@ -41,128 +43,35 @@ using ms::testing::SliceSpec;
 
 namespace {
 
-const std::string kBin = MANDISYM_BINARY;
-const std::string kPrefix = "mandisym: error: ";
+using ms::testing::expect_refused;
+using ms::testing::record_case;
+using ms::testing::RunLimits;
+using ms::testing::RunResult;
 
-// ---------------------------------------------------------------- helpers
-
-// A fresh folder per test (test name + pid), removed afterwards even when it
-// was made unreadable.
-class TempCase {
- public:
-  TempCase() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    root_ = fs::temp_directory_path() /
-            ("mandisym_bad_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
-    remove();
-    fs::create_directories(root_);
-  }
-  // MANDISYM_KEEP_BAD_INPUT=1 keeps the folders (to reproduce a failure by hand).
-  ~TempCase() {
-    if (!std::getenv("MANDISYM_KEEP_BAD_INPUT")) remove();
-  }
-  const fs::path& root() const { return root_; }
-  fs::path operator/(const std::string& s) const { return root_ / s; }
-  fs::path out() const { return root_ / "out"; }
-
- private:
-  void remove() {
-    std::error_code ec;
-    if (!fs::exists(root_, ec)) return;
-    for (auto it = fs::recursive_directory_iterator(root_, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
-      ::chmod(it->path().c_str(), 0755);
-    ::chmod(root_.c_str(), 0755);
-    // A chmod 000 folder is not descended into above: open it first.
-    for (const auto& e : fs::directory_iterator(root_, ec)) ::chmod(e.path().c_str(), 0755);
-    fs::remove_all(root_, ec);
-  }
-  fs::path root_;
+// A fresh folder per test, removed afterwards even when it was made
+// unreadable (MANDISYM_KEEP_BAD_INPUT=1 keeps it).
+struct TempCase : ms::testing::TempCase {
+  TempCase() : ms::testing::TempCase("mandisym_bad") {}
 };
 
-struct RunResult {
-  bool exited = false;    // normal exit (not a signal)
-  int code = -1;          // exit code when exited
-  int signal = 0;         // signal when not exited
-  std::string err;        // stderr
-  std::string command;    // for messages
-};
-
-// Runs `mandisym ARGS...` (fork/exec, no shell); stdout discarded, stderr captured.
-// as_nobody: when the test runs as root, the binary runs as uid/gid 65534 so
-// that file permissions apply (root ignores them).
-// file_size_limit > 0: RLIMIT_FSIZE in bytes (a full disk as the writer sees
-// it: EFBIG; SIGXFSZ is ignored as a shell's `trap "" XFSZ` would).
-RunResult run_binary(const std::vector<std::string>& args, const fs::path& scratch, bool as_nobody = false,
-                     rlim_t file_size_limit = 0) {
-  RunResult r;
-  r.command = kBin;
-  for (const auto& a : args) r.command += " " + a;
-  const fs::path errf = scratch.parent_path() / (scratch.filename().string() + ".stderr");
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int out = ::open("/dev/null", O_WRONLY);
-    const int err = ::open(errf.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (out >= 0) ::dup2(out, 1);
-    if (err >= 0) ::dup2(err, 2);
-    if (file_size_limit > 0) {
-      ::signal(SIGXFSZ, SIG_IGN);
-      const rlimit lim{file_size_limit, file_size_limit};
-      if (::setrlimit(RLIMIT_FSIZE, &lim) != 0) ::_exit(126);
-    }
-    if (as_nobody && ::geteuid() == 0) {
-      if (::setgroups(0, nullptr) != 0 || ::setgid(65534) != 0 || ::setuid(65534) != 0) ::_exit(126);
-    }
-    std::vector<char*> argv;
-    argv.push_back(const_cast<char*>(kBin.c_str()));
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(kBin.c_str(), argv.data());
-    ::_exit(127);
-  }
-  int st = 0;
-  ::waitpid(pid, &st, 0);
-  r.exited = WIFEXITED(st);
-  r.code = r.exited ? WEXITSTATUS(st) : -1;
-  r.signal = WIFSIGNALED(st) ? WTERMSIG(st) : 0;
-  std::ifstream f(errf);
-  std::stringstream s;
-  s << f.rdbuf();
-  r.err = s.str();
-  std::error_code ec;
-  fs::remove(errf, ec);
-  return r;
-}
-
-// `mandisym run INPUT -o OUTDIR [extra...]`
+// `mandisym run INPUT -o OUTDIR --quiet --no-figures [extra...]` (the shared
+// runner, tests/support/binary_run.h: 60 s hang guard; as_nobody and
+// file_size as there).
 RunResult run_on(const fs::path& input, const fs::path& out, const std::vector<std::string>& extra = {},
                  bool as_nobody = false, rlim_t file_size_limit = 0) {
   std::vector<std::string> args{"run", input.string(), "-o", out.string(), "--quiet", "--no-figures"};
   args.insert(args.end(), extra.begin(), extra.end());
-  return run_binary(args, out, as_nobody, file_size_limit);
+  RunLimits limits;
+  limits.as_nobody = as_nobody;
+  limits.file_size = file_size_limit;
+  return ms::testing::run_binary(args, out, limits);
 }
 
 // For the permission cases: run unprivileged; skip when that is impossible.
-#define RUN_UNPRIVILEGED_OR_SKIP(result, input, out)                                              \
-  const RunResult result = run_on(input, out, {}, true);                                          \
-  if (result.exited && (result.code == 126 || result.code == 127) && result.err.empty())          \
+#define RUN_UNPRIVILEGED_OR_SKIP(result, input, out)          \
+  const RunResult result = run_on(input, out, {}, true);      \
+  if (ms::testing::could_not_run_unprivileged(result))        \
     GTEST_SKIP() << "running as root and cannot run the binary as an unprivileged user";
-
-// The contract. names: strings the one line must contain (paths, key words).
-void expect_refused(const RunResult& r, int expected_code, const fs::path& out, const std::vector<std::string>& names) {
-  SCOPED_TRACE(r.command);
-  ASSERT_TRUE(r.exited) << "killed by signal " << r.signal << "; stderr:\n" << r.err;
-  EXPECT_NE(r.code, 1) << "internal error; stderr:\n" << r.err;
-  EXPECT_EQ(r.code, expected_code) << "stderr:\n" << r.err;
-  // Exactly one line.
-  EXPECT_FALSE(r.err.empty());
-  const auto nl = std::count(r.err.begin(), r.err.end(), '\n');
-  EXPECT_EQ(nl, 1) << "stderr is not one line:\n" << r.err;
-  EXPECT_TRUE(!r.err.empty() && r.err.back() == '\n') << r.err;
-  EXPECT_EQ(r.err.rfind(kPrefix, 0), 0u) << "stderr does not start with '" << kPrefix << "':\n" << r.err;
-  for (const auto& n : names) EXPECT_NE(r.err.find(n), std::string::npos) << "stderr does not name '" << n << "':\n" << r.err;
-  EXPECT_FALSE(fs::exists(out / "results.json")) << "results.json written for refused input";
-  EXPECT_FALSE(fs::exists(out / "report.html")) << "report.html written for refused input";
-}
 
 // HU functions.
 double water_cylinder(const Vec3& p) {
@@ -416,6 +325,7 @@ TEST(BadInput, CorruptJpegLosslessStream) {
   ASSERT_TRUE(r.exited) << "killed by signal " << r.signal << "; stderr:\n" << r.err;
   ASSERT_NE(r.code, 1) << r.err;
   if (r.code == 0 || r.code == 5 || r.code == 6) {
+    record_case(r, r.code, "dicom");  // decoded: any of these is acceptable
     std::cerr << "note: GDCM decoded the corrupt JPEG stream without error (exit " << r.code << ")\n";
     return;
   }
@@ -819,6 +729,53 @@ TEST(BadInput, FullDiskWhileWritingOutputsExits7WithOneLine) {
   }
 }
 
+// OUTDIR that cannot be a folder: a regular file, or a path through one.
+// Exit 7 before any work is kept, one line naming OUTDIR, the file untouched.
+TEST(BadInput, OutdirThatIsAFileOrUnderAFileExits7) {
+  TempCase t;
+  const fs::path file = t / "results_here";
+  std::ofstream(file) << "a user's file\n";
+  for (const fs::path& out : {file, file / "sub"}) {
+    expect_refused(run_on(kSampleSeries, out), 7, out, {out.string(), "cannot"});
+    EXPECT_TRUE(fs::is_regular_file(file));
+    EXPECT_EQ(slurp(file), "a user's file\n") << "the file given as OUTDIR was changed";
+  }
+}
+
+// OUTDIR the user may not write: an existing read-only folder, and a new
+// folder inside one (run unprivileged: root ignores permissions).
+TEST(BadInput, UnwritableOutdirExits7) {
+  TempCase t;
+  const fs::path locked = t / "locked";
+  fs::create_directories(locked);
+  ASSERT_EQ(::chmod(locked.c_str(), 0555), 0);
+  for (const fs::path& out : {locked, locked / "new"}) {
+    RUN_UNPRIVILEGED_OR_SKIP(r, kSampleSeries, out);
+    expect_refused(r, 7, out, {out.string(), "Permission denied"});
+  }
+  EXPECT_TRUE(fs::is_empty(locked)) << "something was written into the read-only folder";
+}
+
+// A results.json that is a user's folder: the commit, which removes the old
+// results.json before moving anything, stops there; exit 7, one line naming
+// it, the folder kept whole, and no report.html moved into OUTDIR.
+TEST(BadInput, ResultsJsonThatIsAFolderIsKeptAndExits7) {
+  TempCase t;
+  const fs::path out = t.out();
+  fs::create_directories(out / "results.json");
+  std::ofstream(out / "results.json" / "keep.txt") << "mine";
+  const RunResult r = run_on(kSampleSeries, out);
+  record_case(r, 7, "output");
+  SCOPED_TRACE(r.command);
+  ASSERT_TRUE(r.exited) << ms::testing::describe(r);
+  EXPECT_EQ(r.code, 7) << r.err;
+  EXPECT_EQ(r.err.rfind("mandisym: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find((out / "results.json").string()), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(out / "results.json" / "keep.txt"), "mine") << "the user's folder was removed";
+  EXPECT_FALSE(fs::exists(out / "report.html"));
+}
+
 // A staging-looking folder as `mandisym` leaves one behind, with its marker.
 fs::path fake_staging(const fs::path& outdir, const std::string& name, const std::string& token) {
   const fs::path d = outdir / name;
@@ -851,6 +808,7 @@ TEST(BadInput, StaleStagingIsRemovedDecoysAndLiveRunsStayNonUtf8PathIsValidJson)
   ASSERT_EQ(::flock(live_fd, LOCK_EX), 0);  // held across fork/exec by the open file description, as a live run holds it
   const RunResult r = run_on(in, out);
   ::close(live_fd);
+  record_case(r, 0, "output");
   ASSERT_TRUE(r.exited && r.code == 0) << r.err;
   EXPECT_FALSE(fs::exists(stale)) << "stale staging folder not removed";
   EXPECT_TRUE(fs::exists(live / ".mandisym-staging")) << "a live run's staging folder was removed";

@@ -22,10 +22,8 @@
 // MANDISYM_BINARY_UNDER_TEST=/path/to/mandisym runs the suite against another
 // build (e.g. the one before a fix, to see the tests fail).
 #include <gtest/gtest.h>
-#include <fcntl.h>
 #include <signal.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -41,14 +39,18 @@
 #include <vector>
 
 #include "core/json.h"
+#include "tests/support/binary_run.h"
 
 namespace fs = std::filesystem;
 using ms::json::Value;
 
 namespace {
 
-const char* kEnvBin = std::getenv("MANDISYM_BINARY_UNDER_TEST");
-const std::string kBin = kEnvBin ? kEnvBin : MANDISYM_BINARY;
+using ms::testing::describe;
+using ms::testing::record_case;
+using ms::testing::RunLimits;
+using ms::testing::RunResult;
+
 const fs::path kSamples = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
 // Guard, s: a binary still running after this is killed and the case fails
 // (the defects were a 290 s hang and a cohort blocked for ever).
@@ -74,58 +76,14 @@ std::string slurp(const fs::path& p) {
 Value load(const fs::path& p) { return Value::parse(slurp(p)); }
 void save(const fs::path& p, const Value& v) { std::ofstream(p) << v.dump(2); }
 
-struct Result {
-  bool exited = false;
-  int code = -1;
-  bool guard_killed = false;
-  std::string err;
-};
-
-// Starts `mandisym ARGS...` (no shell), stdout to /dev/null, stderr to errf.
-pid_t spawn(const std::vector<std::string>& args, const fs::path& errf) {
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int out = ::open("/dev/null", O_WRONLY);
-    const int err = ::open(errf.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (out >= 0) ::dup2(out, 1);
-    if (err >= 0) ::dup2(err, 2);
-    std::vector<char*> argv{const_cast<char*>(kBin.c_str())};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(kBin.c_str(), argv.data());
-    ::_exit(127);
-  }
-  return pid;
+// The shared runner (tests/support/binary_run.h) with this suite's guard.
+RunLimits guarded() {
+  RunLimits l;
+  l.guard_seconds = kGuardS;
+  return l;
 }
 
-// Waits for pid, killing it (and failing) after kGuardS.
-Result reap(pid_t pid, const fs::path& errf) {
-  Result r;
-  int st = 0;
-  const auto t0 = std::chrono::steady_clock::now();
-  while (::waitpid(pid, &st, WNOHANG) == 0) {
-    if (std::chrono::steady_clock::now() - t0 > std::chrono::seconds(kGuardS)) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, &st, 0);
-      r.guard_killed = true;
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  r.exited = WIFEXITED(st);
-  r.code = r.exited ? WEXITSTATUS(st) : -1;
-  r.err = slurp(errf);
-  return r;
-}
-
-Result run(const std::vector<std::string>& args) {
-  const fs::path errf = root() / "stderr.txt";
-  return reap(spawn(args, errf), errf);
-}
-
-std::string describe(const Result& r) {
-  return r.guard_killed ? "still running after " + std::to_string(kGuardS) + " s (killed)" : "exit " + std::to_string(r.code) + ", stderr: " + r.err;
-}
+RunResult run(const std::vector<std::string>& args) { return ms::testing::run_binary(args, root() / "cmd", guarded()); }
 
 // One `mandisym run` per fixture, shared by the tests.
 const fs::path& run_folder(const std::string& name, const std::vector<std::string>& args) {
@@ -136,7 +94,7 @@ const fs::path& run_folder(const std::string& name, const std::vector<std::strin
   std::vector<std::string> a = {"run"};
   a.insert(a.end(), args.begin(), args.end());
   a.insert(a.end(), {"-o", out.string(), "-q", "--no-figures"});
-  const Result r = run(a);
+  const RunResult r = run(a);
   EXPECT_EQ(r.code, 0) << name << ": " << describe(r);
   return cache[name] = out;
 }
@@ -151,7 +109,7 @@ const fs::path& deidentified_run() {
 const fs::path& other_patient_run() {
   static const fs::path ph = [] {
     const fs::path p = root() / "other_phantom";
-    const Result r = run({"phantom", "-o", p.string(), "--spacing", "1", "--fov", "140,120,120", "--scale", "0.8", "--no-preview"});
+    const RunResult r = run({"phantom", "-o", p.string(), "--spacing", "1", "--fov", "140,120,120", "--scale", "0.8", "--no-preview"});
     EXPECT_EQ(r.code, 0) << describe(r);
     return p;
   }();
@@ -177,7 +135,9 @@ fs::path edited(const fs::path& run, const std::string& name, const std::functio
 }
 
 // Checks exit 4 and one stderr line naming the file and the field.
-void expect_invalid(const Result& r, const fs::path& file, const std::string& field) {
+// Also a corpus case (category compare), within its budget.
+void expect_invalid(const RunResult& r, const fs::path& file, const std::string& field) {
+  record_case(r, 4, "compare");
   EXPECT_FALSE(r.guard_killed) << describe(r);
   EXPECT_EQ(r.code, 4) << describe(r);
   EXPECT_EQ(r.err.rfind("mandisym: error: ", 0), 0u) << r.err;
@@ -186,7 +146,7 @@ void expect_invalid(const Result& r, const fs::path& file, const std::string& fi
   EXPECT_NE(r.err.find("`" + field + "`"), std::string::npos) << "does not name field " << field << ": " << r.err;
 }
 
-Result compare(const fs::path& pre, const fs::path& post, const fs::path& out) {
+RunResult compare(const fs::path& pre, const fs::path& post, const fs::path& out) {
   return run({"compare", pre.string(), post.string(), "-o", out.string(), "-q", "--transfer-landmarks", "off"});
 }
 
@@ -255,7 +215,8 @@ TEST(HostileCompare, PostDatedBeforePreIsWarnedWithBothDates) {
   ASSERT_EQ(pre_date.size(), 8u);
   const std::string earlier = std::to_string(std::stoi(pre_date.substr(0, 4)) - 1) + pre_date.substr(4);
   const fs::path post = edited(post_run(), "earlier", [&](Value& r) { r["input"]["study_date"] = Value(earlier); });
-  const Result r = compare(pre, post, out);
+  const RunResult r = compare(pre, post, out);
+  record_case(r, 0, "compare");
   ASSERT_EQ(r.code, 0) << describe(r);
   EXPECT_NE(r.err.find("mandisym: warning: POST's study date " + earlier + " is before PRE's " + pre_date), std::string::npos) << r.err;
   const Value c = load(out / "compare.json");
@@ -272,7 +233,8 @@ TEST(HostileCompare, PostDatedBeforePreIsWarnedWithBothDates) {
 // evidence; the same patient before/after a 4 mm ramus change gives none.
 TEST(HostileCompare, AnotherPatientsMandibleIsWarnedAndTheSamePatientIsNot) {
   const fs::path same = root() / "cmp_same_patient", other = root() / "cmp_other_patient";
-  Result r = compare(pre_run(), post_run(), same);
+  RunResult r = compare(pre_run(), post_run(), same);
+  record_case(r, 0, "compare");
   ASSERT_EQ(r.code, 0) << describe(r);
   const Value s = load(same / "compare.json");
   EXPECT_TRUE(warning(s, "mandible_volume_ratio").is_null()) << s.at("consistency").dump(2);
@@ -283,6 +245,7 @@ TEST(HostileCompare, AnotherPatientsMandibleIsWarnedAndTheSamePatientIsNot) {
   EXPECT_LT(shape.at("ramus_rms_mm").as_number(), shape.at("ramus_rms_max_mm").as_number());
 
   r = compare(pre_run(), other_patient_run(), other);
+  record_case(r, 0, "compare");
   ASSERT_EQ(r.code, 0) << describe(r);
   const Value o = load(other / "compare.json");
   const Value w = warning(o, "mandible_volume_ratio");
@@ -300,7 +263,8 @@ TEST(HostileCompare, DeidentifiedRunsAreNotComparedByIdentifiersNorPrinted) {
   const fs::path out = root() / "cmp_deid";
   const Value pre = load(pre_run() / "results.json");
   const std::string uid = pre.at("input").at("series_uid").as_string(), date = pre.at("input").at("study_date").as_string();
-  const Result r = compare(pre_run(), deidentified_run(), out);
+  const RunResult r = compare(pre_run(), deidentified_run(), out);
+  record_case(r, 0, "compare");
   ASSERT_EQ(r.code, 0) << describe(r);
   const Value c = load(out / "compare.json");
   EXPECT_FALSE(c.at("consistency").at("identity").at("compared").as_bool());
@@ -345,7 +309,8 @@ TEST(HostileBatch, DeidentifyKeepsPatientNamedPathsOutOfEveryCohortFile) {
   fs::create_directories(src / "DOE^JOHN_12345");
   std::ofstream(src / "DOE^JOHN_12345" / "notes.txt") << "not an image\n";
   fs::create_directory_symlink(kSamples / "symmetric" / "dicom", src / "ROE^JANE_67890");
-  const Result r = run({"batch", src.string(), "-o", out.string(), "--deidentify", "-q"});
+  const RunResult r = run({"batch", src.string(), "-o", out.string(), "--deidentify", "-q"});
+  record_case(r, 9, "batch");
   ASSERT_FALSE(r.guard_killed);
   EXPECT_EQ(r.code, 9) << describe(r);
   const auto rows = read_cohort(out / "cohort.csv");
@@ -376,7 +341,8 @@ TEST(HostileBatch, DeidentifyKeepsPatientNamedPathsOutOfEveryCohortFile) {
   }
   EXPECT_GT(files, 5u);
   // Resumable under the same key: the completed study is not run again.
-  const Result again = run({"batch", src.string(), "-o", out.string(), "--deidentify", "-q"});
+  const RunResult again = run({"batch", src.string(), "-o", out.string(), "--deidentify", "-q"});
+  record_case(again, 9, "batch");
   EXPECT_EQ(again.code, 9) << describe(again);
   std::size_t earlier = 0;
   for (const auto& [id, row] : read_cohort(out / "cohort.csv")) earlier += row.at("status") == "done-earlier";
@@ -429,14 +395,20 @@ TEST(HostileBatch, HungStudyTimesOutKilledStudyIsRecordedAndTheCohortGoesOn) {
   ASSERT_EQ(::mkfifo((src / "fifo").c_str(), 0644), 0);
   fs::create_directory_symlink(kSamples / "symmetric" / "dicom", src / "hung");
   fs::create_directory_symlink(kSamples / "ramus_L_plus4mm" / "dicom", src / "victim");
-  EXPECT_EQ(run({"batch", src.string(), "-o", out.string(), "--study-timeout", "-1"}).code, 2);
-  EXPECT_EQ(run({"batch", src.string(), "-o", out.string(), "--study-timeout", "soon"}).code, 2);
+  for (const char* bad : {"-1", "soon"}) {
+    const RunResult usage = run({"batch", src.string(), "-o", out.string(), "--study-timeout", bad});
+    record_case(usage, 2, "batch");
+    EXPECT_EQ(usage.code, 2) << describe(usage);
+  }
 
-  const fs::path errf = root() / "batch_hang.stderr";
-  const pid_t batch = spawn({"batch", src.string(), "-o", out.string(), "--jobs", "4", "--study-timeout", "3", "-q"}, errf);
+  ms::testing::Child child =
+      ms::testing::start_binary({"batch", src.string(), "-o", out.string(), "--jobs", "4", "--study-timeout", "3", "-q"},
+                                root() / "batch_hang", guarded());
+  const pid_t batch = child.pid;
   const bool stopped = signal_child(batch, (src / "hung").string(), SIGSTOP);
   const bool killed = signal_child(batch, (src / "victim").string(), SIGKILL);
-  const Result r = reap(batch, errf);
+  const RunResult r = ms::testing::wait_binary(child);
+  record_case(r, 9, "batch");
   ASSERT_TRUE(stopped && killed) << "the studies' processes were not found";
   ASSERT_FALSE(r.guard_killed) << "the cohort is blocked by the hung study";
   EXPECT_EQ(r.code, 9) << describe(r);

@@ -9,13 +9,12 @@
 //   4. OUTDIR holds no results.json and no report.html afterwards.
 // Memory bombs run the binary under RLIMIT_AS (kBombAddressSpace) and check
 // its peak RSS (wait4): they pass because the refusal comes before any
-// allocation, never by using gigabytes. Policies and limits: docs/ingest.md.
+// allocation, never by using gigabytes. Every case also stays within the
+// hostile-input corpus budget (2 GB, 60 s; tests/support/binary_run.h).
+// Policies and limits: docs/ingest.md.
 #include <gtest/gtest.h>
-#include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
 #include <zlib.h>
 
 #include <gdcmDataSet.h>
@@ -36,6 +35,7 @@
 #include "core/error.h"
 #include "core/memory.h"
 #include "io/volume_io.h"
+#include "tests/support/binary_run.h"
 #include "tests/support/dicom_forge.h"
 
 namespace fs = std::filesystem;
@@ -44,96 +44,31 @@ using ms::testing::SliceSpec;
 
 namespace {
 
-const std::string kBin = MANDISYM_BINARY;
-const std::string kPrefix = "mandisym: error: ";
+using ms::testing::expect_refused;
+using ms::testing::RunLimits;
+using ms::testing::RunResult;
+
 // Address space the binary gets in the memory-bomb cases: enough to start
 // (it reserves 1.5 GB of heap address space, untouched) and far below what
 // the bombs would allocate. The default budget follows it (RLIMIT_AS).
 constexpr rlim_t kBombAddressSpace = rlim_t{3} << 30;
 // Peak RSS a refused bomb may reach: the binary itself, ITK and GDCM (~100 MB).
 constexpr long kRefusedPeakRssKb = 300 * 1024;
-// A hang guard, not a timing assertion: a regression that blocks on a FIFO
-// is killed (SIGALRM) and fails as "killed by signal" instead of hanging ctest.
-constexpr unsigned kHangGuardSeconds = 300;
 
-class TempCase {
- public:
-  TempCase() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    root_ = fs::temp_directory_path() / ("mandisym_hostile_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
-    fs::remove_all(root_);
-    fs::create_directories(root_);
-  }
-  ~TempCase() {
-    std::error_code ec;
-    if (!std::getenv("MANDISYM_KEEP_BAD_INPUT")) fs::remove_all(root_, ec);
-  }
-  fs::path operator/(const std::string& s) const { return root_ / s; }
-  fs::path out() const { return root_ / "out"; }
-
- private:
-  fs::path root_;
+struct TempCase : ms::testing::TempCase {
+  TempCase() : ms::testing::TempCase("mandisym_hostile") {}
 };
 
-struct RunResult {
-  bool exited = false;
-  int code = -1;
-  int signal = 0;
-  long max_rss_kb = 0;
-  std::string err;
-  std::string command;
-};
-
-// `mandisym run INPUT -o OUTDIR --quiet --no-figures [extra]` (fork/exec, no
-// shell); address_space > 0 sets RLIMIT_AS in the child.
+// `mandisym run INPUT -o OUTDIR --quiet --no-figures [extra]` through the
+// shared runner (tests/support/binary_run.h; its 60 s guard kills a
+// regression that blocks on a FIFO); address_space > 0 sets RLIMIT_AS.
 RunResult run_on(const fs::path& input, const fs::path& out, const std::vector<std::string>& extra = {},
                  rlim_t address_space = 0) {
   std::vector<std::string> args{"run", input.string(), "-o", out.string(), "--quiet", "--no-figures"};
   args.insert(args.end(), extra.begin(), extra.end());
-  RunResult r;
-  r.command = kBin;
-  for (const auto& a : args) r.command += " " + a;
-  const fs::path errf = out.parent_path() / "stderr.txt";
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int o = ::open("/dev/null", O_WRONLY), e = ::open(errf.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (o >= 0) ::dup2(o, 1);
-    if (e >= 0) ::dup2(e, 2);
-    if (address_space) {
-      const rlimit rl{address_space, address_space};
-      ::setrlimit(RLIMIT_AS, &rl);
-    }
-    ::alarm(kHangGuardSeconds);
-    std::vector<char*> argv{const_cast<char*>(kBin.c_str())};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(kBin.c_str(), argv.data());
-    ::_exit(127);
-  }
-  int st = 0;
-  rusage ru{};
-  ::wait4(pid, &st, 0, &ru);
-  r.exited = WIFEXITED(st);
-  r.code = r.exited ? WEXITSTATUS(st) : -1;
-  r.signal = WIFSIGNALED(st) ? WTERMSIG(st) : 0;
-  r.max_rss_kb = ru.ru_maxrss;
-  std::ifstream f(errf);
-  std::stringstream s;
-  s << f.rdbuf();
-  r.err = s.str();
-  return r;
-}
-
-void expect_refused(const RunResult& r, int expected_code, const fs::path& out, const std::vector<std::string>& names) {
-  SCOPED_TRACE(r.command);
-  ASSERT_TRUE(r.exited) << "killed by signal " << r.signal << "; stderr:\n" << r.err;
-  EXPECT_NE(r.code, 1) << "internal error; stderr:\n" << r.err;
-  EXPECT_EQ(r.code, expected_code) << "stderr:\n" << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "stderr is not one line:\n" << r.err;
-  EXPECT_EQ(r.err.rfind(kPrefix, 0), 0u) << r.err;
-  for (const auto& n : names) EXPECT_NE(r.err.find(n), std::string::npos) << "stderr does not name '" << n << "':\n" << r.err;
-  EXPECT_FALSE(fs::exists(out / "results.json"));
-  EXPECT_FALSE(fs::exists(out / "report.html"));
+  RunLimits limits;
+  limits.address_space = address_space;
+  return ms::testing::run_binary(args, out, limits);
 }
 
 // ---------------------------------------------------------------- DICOM helpers
@@ -444,7 +379,7 @@ TEST(HostileIngest, DicomJpegFrameLargerThanRowsColumns) {
   std::ofstream(bad, std::ios::binary) << bytes;
   const RunResult r = run_on(in, t.out(), {}, kBombAddressSpace);
   expect_refused(r, 4, t.out(), {bad, "60000 x 60000"});
-  EXPECT_LT(r.max_rss_kb, kRefusedPeakRssKb);
+  EXPECT_LT(r.peak_rss_kb, kRefusedPeakRssKb);
 }
 
 // ---------------------------------------------------------------- 5. NIfTI orientation
@@ -530,7 +465,7 @@ TEST(HostileIngest, GzipNiftiBombRefusedBeforeInflating) {
   }
   const RunResult r = run_on(in, t.out(), {}, kBombAddressSpace);
   expect_refused(r, 4, t.out(), {in.string(), "--max-memory", "budget"});
-  EXPECT_LT(r.max_rss_kb, kRefusedPeakRssKb);
+  EXPECT_LT(r.peak_rss_kb, kRefusedPeakRssKb);
 }
 
 // zlib MetaImage bomb, and a zlib stream shorter than the header declares.
@@ -541,7 +476,7 @@ TEST(HostileIngest, ZlibMetaImageBombAndShortStream) {
                    "ElementDataFile = LOCAL\n" + deflate_zeros(std::uint64_t{256} << 20, false));
   const RunResult r = run_on(bomb, t.out(), {"--orientation", "LPS"}, kBombAddressSpace);
   expect_refused(r, 4, t.out(), {bomb.string(), "--max-memory"});
-  EXPECT_LT(r.max_rss_kb, kRefusedPeakRssKb);
+  EXPECT_LT(r.peak_rss_kb, kRefusedPeakRssKb);
   const fs::path shorter = t / "short.mha";
   write_text(shorter, "ObjectType = Image\nNDims = 3\nDimSize = 64 64 64\nElementType = MET_FLOAT\nCompressedData = True\n"
                       "ElementDataFile = LOCAL\n" + zlib_noise(64 * 64 * 32 * 4));
@@ -558,7 +493,7 @@ TEST(HostileIngest, RawNrrdDeclaringMoreThanItsDataFileHolds) {
   write_text(big, "NRRD0004\ndimension: 3\nsizes: 1500 1500 1400\ntype: short\nendian: little\nencoding: raw\ndata file: small.raw\n");
   const RunResult r = run_on(big, t.out(), {"--orientation", "LPS"}, kBombAddressSpace);
   expect_refused(r, 4, t.out(), {big.string(), "declares"});
-  EXPECT_LT(r.max_rss_kb, kRefusedPeakRssKb);
+  EXPECT_LT(r.peak_rss_kb, kRefusedPeakRssKb);
   write_text(t / "one_mb.raw", std::string(1 << 20, '\0'));
   const fs::path mid = t / "mid.nhdr";
   write_text(mid, "NRRD0004\ndimension: 3\nsizes: 200 200 200\ntype: short\nendian: little\nencoding: raw\ndata file: one_mb.raw\n");
