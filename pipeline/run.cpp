@@ -20,6 +20,7 @@
 #include "asymmetry/saf.h"
 #include "core/error.h"
 #include "core/memory.h"
+#include "core/sha256.h"
 #include "geometry/mesh_geometry.h"
 #include "io/volume_io.h"
 #include "landmarks/landmarks.h"
@@ -96,6 +97,18 @@ class Stopwatch {
  private:
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
+
+// SHA-256 of a file's bytes (hex).
+std::string file_sha256(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  Sha256 h;
+  std::vector<char> buf(1 << 20);
+  while (f) {
+    f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+    h.update(buf.data(), static_cast<std::size_t>(f.gcount()));
+  }
+  return h.hex_digest();
+}
 
 // Every option of `run`, read and checked before the scan is (a bad value
 // costs no ingest). Ranges (docs/security.md, "Options"): edge lengths from a
@@ -362,6 +375,11 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   S.parameters["saf_anchors"] = anchor_choice;
   S.parameters["surface_close_handles"] = args.get("close-handles", "auto");
   S.parameters["landmark_method"] = S.landmarks.method;
+  if (args.has("mask")) {  // the segmentation given: which file (its content by hash) and label
+    S.parameters["mask_path"] = deidentify ? "(removed)" : args.get("mask");
+    S.parameters["mask_sha256"] = file_sha256(args.get("mask"));
+    S.parameters["mask_label"] = rs.label >= 0 ? std::to_string(rs.label) : "the only label";
+  }
 
   // ---- outputs, staged then moved into place ----
   {

@@ -1,5 +1,6 @@
 #include "reports/writers.h"
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -307,6 +308,8 @@ json::Value results_json(const RunSummary& s) {
   root["schema_version"] = kSchemaVersion;
   root["tool"]["name"] = "mandisym";
   root["tool"]["version"] = s.tool_version;
+  root["coordinate_system"] = "LPS";  // every position in this file: patient LPS, mm
+  root["units"] = "mm";
 
   root["input"] = input_json(s);
 
@@ -396,7 +399,15 @@ json::Value results_json(const RunSummary& s) {
   for (const auto& x : s.warnings) w.push_back(x);
   auto& p = root["parameters"];
   p = Value::object();
-  for (const auto& [k, v] : s.parameters) p[k] = v;
+  for (const auto& [k, v] : s.parameters) {
+    // A value that reads back whole as a finite number is written as one.
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (!v.empty() && end == v.c_str() + v.size() && std::isfinite(x) && !std::isspace(static_cast<unsigned char>(v[0])))
+      p[k] = x;
+    else
+      p[k] = v;
+  }
   return root;
 }
 

@@ -554,7 +554,7 @@ TEST(EndToEnd, VisibleHumanFemaleLandmarksMatchTheReference) {
 TEST(EndToEnd, SurfaceFollowsTheCtOnlyWithItsOwnSegmentation) {
   const Value& r = results("symmetric");
   ASSERT_TRUE(r.is_object());
-  const double level = std::stod(r.at("parameters").at("surface_guide_level_hu").as_string());
+  const double level = r.at("parameters").at("surface_guide_level_hu").as_number();
   const double offset = r.at("segmentation").at("calibration_offset_hu").as_number();
   EXPECT_NEAR(level, 700.0 + offset, 1e-3);
   const double mesh = r.at("mesh").at("volume_mm3").as_number(), mask = r.at("segmentation").at("volume_mm3").as_number();
