@@ -211,6 +211,42 @@ double score_at(const json::Value& results, const std::vector<std::string>& path
   return cur->as_number();
 }
 
+SrdData read_srd(const json::Value& j, const std::string& f) {
+  SrdData d;
+  if (!j.is_object()) bad_field(f, "(top level)", "expected an object");
+  const Value* bins = member(j, "bins", Type::Number, f, "bins");
+  if (!bins || bins->as_number() != std::floor(bins->as_number()) || bins->as_number() < 1 || bins->as_number() > kMaxSrdBins)
+    bad_field(f, "bins", "expected an integer 1.." + std::to_string(kMaxSrdBins));
+  d.bins = static_cast<int>(bins->as_number());
+  const Value* lms = member(j, "landmarks", Type::Object, f, "landmarks");
+  if (!lms) return d;
+  if (lms->size() > kMaxLandmarks) bad_field(f, "landmarks", "more than " + std::to_string(kMaxLandmarks) + " landmarks");
+  for (const auto& [name, blocks] : lms->items()) {
+    const std::string field = "landmarks." + name;
+    if (!blocks.is_array()) bad_field(f, field, "expected an array");
+    asymmetry::Srd x{name, {}};
+    for (std::size_t i = 0; i < blocks.size(); ++i) {
+      const std::string bf = field + "[" + std::to_string(i) + "]";
+      if (!blocks[i].is_object()) bad_field(f, bf, "expected an object");
+      const Value* conf = member(blocks[i], "configuration", Type::String, f, bf + ".configuration");
+      const Value* mir = member(blocks[i], "mirrored", Type::Bool, f, bf + ".mirrored");
+      const Value* h = member(blocks[i], "histogram", Type::Array, f, bf + ".histogram");
+      if (!conf || !mir || !h) bad_field(f, bf, "needs configuration, mirrored and histogram");
+      if (h->size() % static_cast<std::size_t>(d.bins)) bad_field(f, bf + ".histogram", "length is not a multiple of bins");
+      asymmetry::SrdBlock b{conf->as_string(), mir->as_bool(), {}};
+      for (std::size_t k = 0; k < h->size(); ++k) {
+        const Value& e = (*h)[k];
+        if (!e.is_number() || !std::isfinite(e.as_number()) || e.as_number() < 0)
+          bad_field(f, bf + ".histogram[" + std::to_string(k) + "]", "expected a finite number >= 0");
+        b.histogram.push_back(e.as_number());
+      }
+      x.blocks.push_back(std::move(b));
+    }
+    d.landmarks[name] = std::move(x);
+  }
+  return d;
+}
+
 void check_mesh(const Mesh& m, const std::string& file) {
   if (m.faces.size() < kMinFaces)
     throw Error(ExitCode::InputInvalid, file + ": degenerate surface (" + std::to_string(m.faces.size()) + " faces, at least " +

@@ -5,9 +5,11 @@
 // `consistency` (docs/batch.md, "compare: inputs and consistency checks").
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
+#include "asymmetry/srd.h"
 #include "core/json.h"
 #include "core/types.h"
 
@@ -46,6 +48,15 @@ Plane read_plane(const json::Value& results, const std::string& file);
 // A number at a path of results.json for the score table: NaN with *ok=false
 // when a member is absent or null; throws when one has the wrong type.
 double score_at(const json::Value& results, const std::vector<std::string>& path, const std::string& file, bool* ok);
+// srd.json (already parsed), checked field by field: a top-level object,
+// `bins` an integer 1..kMaxSrdBins, at most kMaxLandmarks `landmarks`, each an
+// array of {configuration, mirrored, histogram} blocks whose histogram length
+// is a multiple of bins and holds finite numbers >= 0.
+struct SrdData {
+  int bins = 0;
+  std::map<std::string, asymmetry::Srd> landmarks;
+};
+SrdData read_srd(const json::Value& srd, const std::string& file);
 // The mesh: at least kMinFaces faces, valid vertex indices, finite vertices
 // within ±kMaxCoordinateMm. Throws Error(4) naming the file.
 void check_mesh(const Mesh& m, const std::string& file);

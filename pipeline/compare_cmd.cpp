@@ -104,10 +104,8 @@ void check_scores(const RunData& d) {
   for (const auto& [name, srd] : d.srd) score(d, srd_mismatch_path(name), &ok);
 }
 
-// srd.json, checked field by field (exit 4 naming the field).
+// srd.json, checked field by field (exit 4 naming the field; compare_checks::read_srd).
 void load_srd(const fs::path& file, RunData& d) {
-  namespace cc = compare_checks;
-  using T = json::Value::Type;
   const std::string f = file.string();
   json::Value j;
   try {
@@ -115,37 +113,9 @@ void load_srd(const fs::path& file, RunData& d) {
   } catch (const std::exception& e) {
     throw Error(ExitCode::InputInvalid, f + ": " + e.what());
   }
-  if (!j.is_object()) cc::bad_field(f, "(top level)", "expected an object");
-  const json::Value* bins = cc::member(j, "bins", T::Number, f, "bins");
-  if (!bins || bins->as_number() != std::floor(bins->as_number()) || bins->as_number() < 1 || bins->as_number() > cc::kMaxSrdBins)
-    cc::bad_field(f, "bins", "expected an integer 1.." + std::to_string(cc::kMaxSrdBins));
-  d.srd_bins = static_cast<int>(bins->as_number());
-  const json::Value* lms = cc::member(j, "landmarks", T::Object, f, "landmarks");
-  if (!lms) return;
-  if (lms->size() > cc::kMaxLandmarks) cc::bad_field(f, "landmarks", "more than " + std::to_string(cc::kMaxLandmarks) + " landmarks");
-  for (const auto& [name, blocks] : lms->items()) {
-    const std::string field = "landmarks." + name;
-    if (!blocks.is_array()) cc::bad_field(f, field, "expected an array");
-    asymmetry::Srd x{name, {}};
-    for (std::size_t i = 0; i < blocks.size(); ++i) {
-      const std::string bf = field + "[" + std::to_string(i) + "]";
-      if (!blocks[i].is_object()) cc::bad_field(f, bf, "expected an object");
-      const json::Value* conf = cc::member(blocks[i], "configuration", T::String, f, bf + ".configuration");
-      const json::Value* mir = cc::member(blocks[i], "mirrored", T::Bool, f, bf + ".mirrored");
-      const json::Value* h = cc::member(blocks[i], "histogram", T::Array, f, bf + ".histogram");
-      if (!conf || !mir || !h) cc::bad_field(f, bf, "needs configuration, mirrored and histogram");
-      if (h->size() % static_cast<std::size_t>(d.srd_bins)) cc::bad_field(f, bf + ".histogram", "length is not a multiple of bins");
-      asymmetry::SrdBlock b{conf->as_string(), mir->as_bool(), {}};
-      for (std::size_t k = 0; k < h->size(); ++k) {
-        const json::Value& e = (*h)[k];
-        if (!e.is_number() || !std::isfinite(e.as_number()) || e.as_number() < 0)
-          cc::bad_field(f, bf + ".histogram[" + std::to_string(k) + "]", "expected a finite number >= 0");
-        b.histogram.push_back(e.as_number());
-      }
-      x.blocks.push_back(std::move(b));
-    }
-    d.srd[name] = std::move(x);
-  }
+  compare_checks::SrdData s = compare_checks::read_srd(j, f);
+  d.srd_bins = s.bins;
+  d.srd = std::move(s.landmarks);
 }
 
 // A run folder, every field compare uses checked: wrong types, non-finite or
