@@ -456,15 +456,37 @@ std::string landmarks_markup(const LandmarkSet& lms) {
   return root.dump(2) + "\n";
 }
 
+// A plane as Slicer's plane markups read it (Markups JSON schema v1.0.3;
+// vtkMRMLMarkupsPlaneJsonStorageNode, vtkMRMLMarkupsPlaneNode): for a
+// pointNormal plane with one control point Slicer keeps the rotation of
+// `baseToNode` and moves its origin to the control point, so the normal is
+// baseToNode's z axis; `center` and `normal` are not read. In an LPS file the
+// reader negates the first two rows (first 8 numbers) of both matrices
+// (LPS -> RAS), so the LPS axes are written as they are: baseToNode = [x y n p]
+// in LPS, objectToBase = diag(-1, -1, 1, 1) (identity once read).
 std::string plane_markup(const Plane& plane, double size_mm, const std::string& label) {
   using json::Value;
+  const Vec3 n = normalized(plane.normal);
+  // In-plane axes: x from the scan axis least aligned with the normal.
+  Vec3 helper{0, 0, 0};
+  int least = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(n[a]) < std::abs(n[least])) least = a;
+  helper[least] = 1;
+  const Vec3 x = normalized(helper - dot(helper, n) * n), y = cross(n, x);
   Value root = markup_root();
   Value m = markup_node("Plane");
   m["planeType"] = "pointNormal";
   m["sizeMode"] = "absolute";
-  m["size"] = Value::array_of(std::array<double, 2>{size_mm, size_mm});
+  m["autoScalingFactor"] = 1.0;
   m["center"] = vec(plane.point);
-  m["normal"] = vec(plane.normal);
+  m["normal"] = vec(n);
+  const Vec3& p = plane.point;
+  m["baseToNode"] = Value::array_of(std::array<double, 16>{x[0], y[0], n[0], p[0], x[1], y[1], n[1], p[1], x[2], y[2], n[2], p[2], 0, 0, 0, 1});
+  m["objectToBase"] = Value::array_of(std::array<double, 16>{-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1});
+  m["orientation"] = Value::array_of(std::array<double, 9>{x[0], y[0], n[0], x[1], y[1], n[1], x[2], y[2], n[2]});
+  m["size"] = Value::array_of(std::array<double, 3>{size_mm, size_mm, 0.0});
+  m["planeBounds"] = Value::array_of(std::array<double, 4>{-size_mm / 2, size_mm / 2, -size_mm / 2, size_mm / 2});
   auto cp = Value::object();
   cp["id"] = "1";
   cp["label"] = label;
