@@ -154,7 +154,7 @@ TEST(BadInput, PositiveControlGoodSeriesWithoutMandibleExits5) {
   good_series(in);
   // The message of a segmentation failure should still name the scan (README:
   // "Errors are one line on stderr, naming the file and the problem").
-  // KNOWN BUG (see report): segmentation's "no bone found" message does not name the input.
+  // Regression (fixed; found by the bad-input review): segmentation's "no bone found" message does not name the input.
   expect_refused(run_on(in, t.out()), 5, t.out(), {in.string()});
 }
 
@@ -200,7 +200,7 @@ TEST(BadInput, FolderWithoutReadPermission) {
   good_series(in);
   ASSERT_EQ(::chmod(in.c_str(), 0000), 0);
   // Root ignores permissions: the binary then runs as nobody (65534).
-  // KNOWN BUG (see report): exit 4 "folder is empty" instead of 3.
+  // Regression (fixed; found by the bad-input review): exit 4 "folder is empty" instead of 3.
   RUN_UNPRIVILEGED_OR_SKIP(r, in, t.out());
   expect_refused(r, 3, t.out(), {in.string()});
 }
@@ -211,7 +211,7 @@ TEST(BadInput, SingleDicomFileWithoutReadPermission) {
   good_series(in, ct_base(), 1);
   const fs::path file = slice_name(in, 0);
   ASSERT_EQ(::chmod(file.c_str(), 0000), 0);
-  // KNOWN BUG (see report): exit 4 "... is not DICOM" instead of 3.
+  // Regression (fixed; found by the bad-input review): exit 4 "... is not DICOM" instead of 3.
   RUN_UNPRIVILEGED_OR_SKIP(r, file, t.out());
   expect_refused(r, 3, t.out(), {file.string()});
 }
@@ -221,7 +221,7 @@ TEST(BadInput, NiftiWithoutReadPermission) {
   const fs::path in = t / "ok.nii";
   write_nifti(in, {16, 16, 16}, head_like(16 * 16 * 16));
   ASSERT_EQ(::chmod(in.c_str(), 0000), 0);
-  // KNOWN BUG (see report): exit 4 "Could not create IO object" instead of 3.
+  // Regression (fixed; found by the bad-input review): exit 4 "Could not create IO object" instead of 3.
   RUN_UNPRIVILEGED_OR_SKIP(r, in, t.out());
   expect_refused(r, 3, t.out(), {in.string()});
 }
@@ -240,7 +240,7 @@ TEST(BadInput, TruncatedPixelDataInOneSlice) {
   s.truncate_pixel_bytes = 500;
   const std::string bad = slice_name(in, 5);
   ms::testing::write_slice(bad, s);
-  // KNOWN BUG (see report): not detected; GDCM zero-fills the missing bytes,
+  // Regression (fixed; found by the bad-input review): not detected; GDCM zero-fills the missing bytes,
   // the slice becomes air and the run continues to segmentation (exit 5).
   // The forge really cut the pixel data (file ~500 bytes shorter than its neighbour).
   const auto shorter = static_cast<long>(fs::file_size(slice_name(in, 4))) - static_cast<long>(fs::file_size(bad));
@@ -255,7 +255,7 @@ TEST(BadInput, DicomWithoutPixelData) {
   SliceSpec base = ct_base();
   base.omit_pixel_data = true;
   ms::testing::write_series(in.string(), base, 12, 0.0, 1.0, water_cylinder);
-  // KNOWN BUG (see report): refused with 4 naming the file, but as "cannot read
+  // Regression (fixed; found by the bad-input review): refused with 4 naming the file, but as "cannot read
   // the image (truncated or corrupt DICOM)": the ingest's own "DICOM image
   // without pixel data" check (dicom::scan has_pixels) never fires.
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), ".dcm", "pixel data"});
@@ -271,7 +271,7 @@ TEST(BadInput, OneSliceWithoutPixelDataNamesIt) {
   s.omit_pixel_data = true;
   const std::string bad = slice_name(in, 7);
   ms::testing::write_slice(bad, s);
-  // KNOWN BUG (see report): message says "truncated or corrupt", not "pixel data".
+  // Regression (fixed; found by the bad-input review): message says "truncated or corrupt", not "pixel data".
   expect_refused(run_on(in, t.out()), 4, t.out(), {bad, "pixel data"});
 }
 
@@ -281,7 +281,7 @@ TEST(BadInput, RowsColumnsLargerThanPixelData) {
   // Rows x Columns say 24 x 28, the pixel data holds a 10 x 10 image.
   SliceSpec base = ct_base();
   base.truncate_pixel_bytes = (24 * 28 - 10 * 10) * 2;
-  // KNOWN BUG (see report): not detected (zero-filled), run reaches segmentation (exit 5).
+  // Regression (fixed; found by the bad-input review): not detected (zero-filled), run reaches segmentation (exit 5).
   ms::testing::write_series(in.string(), base, 12, 0.0, 1.0, water_cylinder);
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), ".dcm"});
 }
@@ -317,7 +317,7 @@ TEST(BadInput, CorruptJpegLosslessStream) {
   const RunResult r = run_on(in, t.out());
   // Observed with GDCM 3.0.21: decoding the garbage fails and the run is
   // refused with exit 4 naming the file ("cannot decode the pixel data").
-  // KNOWN BUG (see report): libjpeg's own warnings ("Corrupt JPEG data: premature
+  // Regression (fixed; found by the bad-input review): libjpeg's own warnings ("Corrupt JPEG data: premature
   // end of data segment", "Bogus marker length") precede the error line on stderr.
   // Should a decoder ever accept the garbage, the run must still not crash or
   // hit an internal error; if it fails at ingest it fails with 4 (codes 0, 5, 6
@@ -346,7 +346,7 @@ TEST(BadInput, GarbageAfterDicomPreamble) {
   // 11 good slices remain, but the 1 mm grid now has a 2 mm gap: a folder that
   // ingests must not crash; the uniform phantom then has no mandible (5).
   // Either refusal is acceptable; a crash or internal error is not.
-  // KNOWN BUG (see report): the exit-5 message does not name the input.
+  // Regression (fixed; found by the bad-input review): the exit-5 message does not name the input.
   SCOPED_TRACE(r.err);
   ASSERT_TRUE(r.exited);
   EXPECT_TRUE(r.code == 4 || r.code == 5) << r.code;
@@ -504,7 +504,7 @@ TEST(BadInput, NiftiWithNaNs) {
   std::vector<float> v = head_like(16 * 16 * 16);
   for (std::size_t i = 100; i < 140; ++i) v[i] = std::numeric_limits<float>::quiet_NaN();
   write_nifti(in, {16, 16, 16}, v);
-  // KNOWN BUG (see report): the NIfTI library replaces NaN/Inf by 0 while
+  // Regression (fixed; found by the bad-input review): the NIfTI library replaces NaN/Inf by 0 while
   // reading, so the NaN check never sees them; the run continues (exit 5).
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string(), "NaN"});
 }
@@ -584,7 +584,7 @@ TEST(BadInput, NiftiHeaderOnlyNoData) {
   TempCase t;
   const fs::path in = t / "nodata.nii";
   write_nifti(in, {32, 32, 32}, {});  // header promises 128 KiB of voxels, file ends at 352
-  // KNOWN BUG (see report): read as all zeros without error; the run continues (exit 5).
+  // Regression (fixed; found by the bad-input review): read as all zeros without error; the run continues (exit 5).
   expect_refused(run_on(in, t.out()), 4, t.out(), {in.string()});
 }
 
@@ -774,6 +774,28 @@ TEST(BadInput, ResultsJsonThatIsAFolderIsKeptAndExits7) {
   EXPECT_NE(r.err.find((out / "results.json").string()), std::string::npos) << r.err;
   EXPECT_EQ(slurp(out / "results.json" / "keep.txt"), "mine") << "the user's folder was removed";
   EXPECT_FALSE(fs::exists(out / "report.html"));
+}
+
+// Found by attack: commit() removed the old qc/ before replacing
+// results.json, so a kill in that window left the old results.json without
+// its qc/, and batch took that as done. Now results.json goes first: when a
+// move fails mid-commit (here mandible.stl is a user's non-empty folder) the
+// old run's results.json is gone, never left beside half-replaced outputs.
+TEST(BadInput, CommitThatFailsMidwayLeavesNoStaleResultsJson) {
+  TempCase t;
+  const fs::path out = t.out();
+  ASSERT_EQ(run_on(kSampleSeries, out).code, 0);
+  ASSERT_TRUE(fs::exists(out / "results.json"));
+  fs::remove(out / "mandible.stl");
+  fs::create_directories(out / "mandible.stl");
+  std::ofstream(out / "mandible.stl" / "keep.txt") << "mine";
+  const RunResult r = run_on(kSampleSeries, out);
+  record_case(r, 7, "output");
+  ASSERT_TRUE(r.exited) << ms::testing::describe(r);
+  EXPECT_EQ(r.code, 7) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_FALSE(fs::exists(out / "results.json")) << "the old results.json was left beside a half-done commit";
+  EXPECT_EQ(slurp(out / "mandible.stl" / "keep.txt"), "mine");
 }
 
 // A staging-looking folder as `mandisym` leaves one behind, with its marker.

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "io/dicom.h"
+#include "core/array_order.h"
 #include "io/volume_io.h"
 #include "tests/support/dicom_forge.h"
 
@@ -325,9 +326,15 @@ TEST(Ingest, VolumeFilesHonourOrientationOverride) {
   io::ReadOptions ro;
   ro.orientation = "LAI";
   const auto v = io::read_scan((dir / "v.nii.gz").string(), ro);
-  EXPECT_NEAR(v.volume.geom.direction[0], 1, 1e-12);   // i -> L
-  EXPECT_NEAR(v.volume.geom.direction[4], -1, 1e-12);  // j -> A
-  EXPECT_NEAR(v.volume.geom.direction[8], -1, 1e-12);  // k -> I
+  // The file's axes as the code says: i -> L, j -> A, k -> I; ingest then
+  // brings the grid to the canonical array order (core/array_order.h): the
+  // same voxel positions with j and k reversed, direction = identity.
+  ms::Geometry as_coded = dcm.volume.geom;
+  as_coded.direction = {1, 0, 0, 0, -1, 0, 0, 0, -1};
+  const ms::Geometry expected = ms::reordered(as_coded, ms::canonical_reorder(as_coded));
+  EXPECT_TRUE(v.volume.geom.same_grid(expected, 1e-6));
+  for (int a = 0; a < 9; ++a) EXPECT_NEAR(v.volume.geom.direction[a], a % 4 == 0 ? 1.0 : 0.0, 1e-12);
+  EXPECT_NEAR(expected.origin[1], as_coded.index_to_lps(0, double(as_coded.size[1] - 1), 0)[1], 1e-9);
   ro.orientation = "LLS";
   EXPECT_THROW(io::read_scan((dir / "v.nii.gz").string(), ro), Error);
   fs::remove_all(dir);
