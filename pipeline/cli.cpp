@@ -66,6 +66,7 @@ Args parse(const CommandSpec& spec, const std::vector<std::string>& argv) {
       }
       if (name == "o") name = "output";
       if (name == "q") name = "quiet";
+      if (name == "h") name = "help";
       const OptionSpec* opt = nullptr;
       for (const auto& o : spec.options)
         if (o.name == name) opt = &o;

@@ -74,18 +74,19 @@ bool is_run_folder(const fs::path& p) {
 }
 
 struct ScoreRow {
-  std::string label;
+  std::string key;    // compare.json `scores` key: stable, ASCII (e.g. "ramus_height_mm_diff")
+  std::string label;  // compare.html
   std::vector<std::string> path;
   int prec;
 };
 
 // The scores compare puts side by side (results.json paths).
 std::vector<ScoreRow> score_rows() {
-  std::vector<ScoreRow> rows = {{"SAF score (rad)", {"scores", "saf", "score"}, 4},
-                                {"mirror distance RMS (mm)", {"scores", "mirror", "rms_mm"}, 2},
-                                {"mirror distance p95 (mm)", {"scores", "mirror", "p95_mm"}, 2}};
+  std::vector<ScoreRow> rows = {{"saf_score", "SAF score (rad)", {"scores", "saf", "score"}, 4},
+                                {"mirror_rms_mm", "mirror distance RMS (mm)", {"scores", "mirror", "rms_mm"}, 2},
+                                {"mirror_p95_mm", "mirror distance p95 (mm)", {"scores", "mirror", "p95_mm"}, 2}};
   for (const char* m : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg", "condyle_to_plane_mm", "gonion_to_plane_mm"})
-    rows.push_back({std::string(m) + " L−R", {"scores", "bilateral", m, "diff"}, 2});
+    rows.push_back({std::string(m) + "_diff", std::string(m) + " L−R", {"scores", "bilateral", m, "diff"}, 2});
   return rows;
 }
 
@@ -211,7 +212,9 @@ int compare_command(const cli::Args& args) {
 
   // Scores side by side.
   json::Value cj = json::Value::object();
-  cj["schema_version"] = "1.0";
+  cj["schema_version"] = "1.1";  // 1.1: stable `scores` keys, `tool`
+  cj["tool"]["name"] = "mandisym";
+  cj["tool"]["version"] = version();
   cj["pre"] = pre.dir.string();
   cj["post"] = post.dir.string();
   json::Value alj = json::Value::object();
@@ -237,7 +240,8 @@ int compare_command(const cli::Args& args) {
     e["pre"] = ok1 ? json::Value(a) : json::Value();
     e["post"] = ok2 ? json::Value(b) : json::Value();
     e["change"] = ok1 && ok2 ? json::Value(b - a) : json::Value();
-    sj[r.label] = e;
+    e["label"] = r.label;
+    sj[r.key] = e;
     table << "<tr><td>" << reports::html_escape(r.label) << "</td><td>" << (ok1 ? fixed(a, r.prec) : "n/a") << "</td><td>"
           << (ok2 ? fixed(b, r.prec) : "n/a") << "</td><td>" << (ok1 && ok2 ? fixed(b - a, r.prec) : "n/a") << "</td></tr>\n";
   }

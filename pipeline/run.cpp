@@ -454,7 +454,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     staging.commit();
   }
   if (!quiet) {
-    for (const auto& w : S.warnings) std::cout << "warning: " << w << "\n";
+    for (const auto& w : S.warnings) std::cerr << "warning: " << w << "\n";
     std::cout << "report: " << (fs::absolute(fs::path(outdir)) / "report.html").lexically_normal().string() << std::endl;
   }
   if (S.qc.status == "fail") {
