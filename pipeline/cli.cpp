@@ -33,6 +33,12 @@ double Args::number_in(const std::string& n, double def, double lo, double hi, c
   return v;
 }
 
+double Args::ranged(const std::string& n, double def, const char* unit) const {
+  const auto it = ranges.find(n);
+  if (it == ranges.end()) throw Error(ExitCode::Internal, "--" + n + ": no range declared");
+  return number_in(n, def, it->second.first, it->second.second, unit);
+}
+
 Vec3 Args::vec3(const std::string& n, const Vec3& def) const {
   auto it = values.find(n);
   if (it == values.end()) return def;
@@ -53,6 +59,8 @@ Vec3 Args::vec3(const std::string& n, const Vec3& def) const {
 
 Args parse(const CommandSpec& spec, const std::vector<std::string>& argv) {
   Args a;
+  for (const auto& o : spec.options)
+    if (!std::isnan(o.lo)) a.ranges[o.name] = {o.lo, o.hi};
   for (std::size_t i = 0; i < argv.size(); ++i) {
     const std::string& s = argv[i];
     if (s.size() > 1 && s[0] == '-' && !(s.size() > 1 && (std::isdigit(static_cast<unsigned char>(s[1])) || s[1] == '.'))) {
@@ -109,6 +117,7 @@ std::string help(const CommandSpec& spec) {
     if (!opt.value_name.empty()) o << " " << opt.value_name;
     o << "\n      " << opt.help;
     if (!opt.default_value.empty()) o << " (default: " << opt.default_value << ")";
+    if (!std::isnan(opt.lo)) o << " [" << opt.lo << " to " << opt.hi << "]";
     o << "\n";
   }
   return o.str();

@@ -2,6 +2,7 @@
 // arguments and options in one place; help text and parsing come from it.
 #pragma once
 
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -16,6 +17,10 @@ struct OptionSpec {
   std::string value_name;   // empty: a flag
   std::string help;
   std::string default_value;
+  // Allowed range of a numeric value (inclusive; NaN: none declared). Shown
+  // by --help and enforced by Args::ranged.
+  double lo = std::numeric_limits<double>::quiet_NaN();
+  double hi = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct CommandSpec {
@@ -36,6 +41,9 @@ class Args {
   // A number that must lie in [lo, hi] (unit: for the message); throws
   // Error(Usage) naming the option, the value and the range.
   double number_in(const std::string& n, double def, double lo, double hi, const char* unit) const;
+  // A number within the range its OptionSpec declares (copied here by parse).
+  double ranged(const std::string& n, double def, const char* unit) const;
+  std::map<std::string, std::pair<double, double>> ranges;  // option -> declared [lo, hi]
   Vec3 vec3(const std::string& n, const Vec3& def) const;   // "x,y,z" or a single value for all three
 };
 

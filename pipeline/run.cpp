@@ -48,23 +48,23 @@ const cli::CommandSpec& run_spec() {
       "landmarks.mrk.json, symmetry_plane.mrk.json, results.csv, qc/ and log.txt into OUTDIR.",
       {{"INPUT", "DICOM folder or volume file"}},
       {{"output", "OUTDIR", "output folder (created; existing outputs are replaced)", ""},
-       {"hu-offset", "HU", "added to every voxel after the file's own rescale (e.g. -1024 for HU+1024 data)", "0"},
+       {"hu-offset", "HU", "added to every voxel after the file's own rescale (e.g. -1024 for HU+1024 data)", "0", -4096, 4096},
        {"series", "UID", "series to use when the folder holds several (see mandisym inspect)", "finest CT series covering the scan"},
        {"orientation", "CODE", "volume files: where the i, j, k axes point, e.g. LPS or LAI (for files without orientation)", "from the file"},
        {"max-memory", "SIZE", "memory budget of this run, e.g. 2G or 800M: a scan whose estimated peak (voxels x 4 B x 5) exceeds "
                               "it is refused before it is decoded (docs/security.md)", "75 % of this machine's (or cgroup's) memory"},
        {"allow-external-data", "", "volume headers (.nhdr, .mhd) may name data files outside their own folder", ""},
-       {"bone-threshold", "HU", "bone threshold for segmentation", "250"},
+       {"bone-threshold", "HU", "bone threshold for segmentation", "250", -1000, 3000},
        {"mask", "FILE", "use this segmentation instead of the automatic one (label map in any ITK format)", ""},
-       {"label", "N", "with --mask: the mandible's label (TotalSegmentator craniofacial_structures: 1)", "the only label"},
-       {"target-faces", "N", "decimate the surface above this many triangles", "60000"},
+       {"label", "N", "with --mask: the mandible's label (TotalSegmentator craniofacial_structures: 1)", "the only label", 0, 65535},
+       {"target-faces", "N", "decimate the surface above this many triangles", "60000", 1000, 2e6},
        {"edge-length", "MM", "isotropic remeshing edge length of the surface (0 = no CGAL repair/remeshing); the SAF score is "
-                          "computed on a 1 mm remeshing whatever this is", "1"},
+                          "computed on a 1 mm remeshing whatever this is; 0 or 0.25 to 5", "1", 0, 5},
        {"close-handles", "MM|auto", "closing radius before meshing, removes handles such as teeth in contact; auto = only "
                                     "when the surface has handles, the smallest of 1, 2, 3 mm that removes them (0 = never)", "auto"},
-       {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2"},
+       {"disk-radius", "MM", "radius of the Dirichlet disks at landmarks for harmonic fields", "2", 0.1, 10},
        {"saf-smoothing", "MM", "heat-kernel sigma smoothing each signed angle field before the mirror comparison "
-                               "(0 = per face, METHOD.md's literal definition)", "6"},
+                               "(0 = per face, METHOD.md's literal definition)", "6", 0, 30},
        {"saf-anchors", "WHICH", "where the Dirichlet disks sit: reference (the symmetric reference configuration) or "
                                 "detected (the detected landmarks)", "reference"},
        {"no-figures", "", "do not write QC figures", ""},
@@ -127,23 +127,23 @@ struct RunSettings {
 
 RunSettings run_settings(const cli::Args& args) {
   RunSettings r;
-  r.read.hu_offset = args.number_in("hu-offset", 0.0, -4096, 4096, "HU");
+  r.read.hu_offset = args.ranged("hu-offset", 0.0, "HU");
   r.read.series_uid = args.get("series");
   r.read.orientation = args.get("orientation");
   if (args.has("max-memory")) r.read.max_memory_bytes = parse_memory_size(args.get("max-memory"));
   r.read.allow_external_data_files = args.has("allow-external-data");
-  r.segmentation.bone_threshold_hu = args.number_in("bone-threshold", r.segmentation.bone_threshold_hu, -1000, 3000, "HU");
+  r.segmentation.bone_threshold_hu = args.ranged("bone-threshold", r.segmentation.bone_threshold_hu, "HU");
   if (args.has("label") && !args.has("mask")) throw Error(ExitCode::Usage, "--label needs --mask");
-  const double label = args.number_in("label", -1, -1, 65535, "");
+  const double label = args.has("label") ? args.ranged("label", -1, "") : -1.0;
   if (label != std::floor(label)) throw Error(ExitCode::Usage, "--label: expected a whole number");
   r.label = static_cast<int>(label);
-  r.saf.disk_radius_mm = args.number_in("disk-radius", r.saf.disk_radius_mm, 0.1, 10, "mm");
-  r.saf.smoothing_mm = args.number_in("saf-smoothing", r.saf.smoothing_mm, 0, 30, "mm");
+  r.saf.disk_radius_mm = args.ranged("disk-radius", r.saf.disk_radius_mm, "mm");
+  r.saf.smoothing_mm = args.ranged("saf-smoothing", r.saf.smoothing_mm, "mm");
   r.anchors = args.get("saf-anchors", "reference");
   if (r.anchors != "reference" && r.anchors != "detected")
     throw Error(ExitCode::Usage, "--saf-anchors must be reference or detected, not '" + r.anchors + "'");
-  r.surface.target_faces = static_cast<std::size_t>(args.number_in("target-faces", static_cast<double>(r.surface.target_faces), 1000, 2e6, ""));
-  r.surface.target_edge_mm = args.number_in("edge-length", r.surface.target_edge_mm, 0, 5, "mm");
+  r.surface.target_faces = static_cast<std::size_t>(args.ranged("target-faces", static_cast<double>(r.surface.target_faces), ""));
+  r.surface.target_edge_mm = args.ranged("edge-length", r.surface.target_edge_mm, "mm");
   if (r.surface.target_edge_mm > 0 && r.surface.target_edge_mm < 0.25)
     throw Error(ExitCode::Usage, "--edge-length: " + num(r.surface.target_edge_mm) + " mm is below 0.25 mm (0 turns remeshing off)");
   r.surface.close_handles_auto = args.get("close-handles", "auto") == "auto";

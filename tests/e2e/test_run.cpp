@@ -1100,6 +1100,11 @@ TEST(EndToEnd, EveryVerbHasHelp) {
       std::string err;
       EXPECT_EQ(run(std::string(verb) + " " + flag, &err), 0) << err;
     }
+  // Options with a range show it, as run_settings enforces it.
+  const std::string help = shell_output(kBin + " run --help");
+  EXPECT_NE(help.find("--disk-radius MM"), std::string::npos) << help;
+  EXPECT_NE(help.find("(default: 2) [0.1 to 10]"), std::string::npos) << help;
+  EXPECT_NE(help.find("(default: 250) [-1000 to 3000]"), std::string::npos) << help;
 }
 
 }  // namespace
