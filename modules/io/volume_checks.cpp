@@ -303,19 +303,8 @@ namespace {
 struct Nifti1 {
   unsigned char h[348];
   bool swap = false;
-  std::int16_t i16(int off) const {
-    std::uint16_t v;
-    std::memcpy(&v, h + off, 2);
-    return static_cast<std::int16_t>(swap ? __builtin_bswap16(v) : v);
-  }
-  double f32(int off) const {
-    std::uint32_t v;
-    std::memcpy(&v, h + off, 4);
-    if (swap) v = __builtin_bswap32(v);
-    float x;
-    std::memcpy(&x, &v, 4);
-    return x;
-  }
+  std::int16_t i16(int off) const { return header_i16(h, off, swap); }
+  double f32(int off) const { return header_f32(h, off, swap); }
 };
 
 bool read_nifti1(const std::string& path, Nifti1& n) {
@@ -424,6 +413,25 @@ NiftiOrientation nifti_orientation(const std::string& path, std::string* why) {
     return NiftiOrientation::Disagree;
   }
   return NiftiOrientation::Consistent;
+}
+
+std::int16_t header_i16(const unsigned char* h, int off, bool swap) {
+  std::uint16_t v;
+  std::memcpy(&v, h + off, 2);
+  return static_cast<std::int16_t>(swap ? __builtin_bswap16(v) : v);
+}
+
+std::int32_t header_i32(const unsigned char* h, int off, bool swap) {
+  std::uint32_t v;
+  std::memcpy(&v, h + off, 4);
+  return static_cast<std::int32_t>(swap ? __builtin_bswap32(v) : v);
+}
+
+float header_f32(const unsigned char* h, int off, bool swap) {
+  const std::uint32_t v = static_cast<std::uint32_t>(header_i32(h, off, swap));
+  float x;
+  std::memcpy(&x, &v, 4);
+  return x;
 }
 
 }  // namespace ms::io::checks

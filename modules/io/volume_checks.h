@@ -70,4 +70,9 @@ void check_nifti_header(const std::string& path, std::uint64_t budget);
 enum class NiftiOrientation { NotNifti1, Consistent, NotCoded, Disagree };
 NiftiOrientation nifti_orientation(const std::string& path, std::string* why);
 
+// Fields of a binary header (NIfTI) at byte `off`, byte-swapped when `swap`.
+std::int16_t header_i16(const unsigned char* h, int off, bool swap);
+std::int32_t header_i32(const unsigned char* h, int off, bool swap);
+float header_f32(const unsigned char* h, int off, bool swap);
+
 }  // namespace ms::io::checks

@@ -320,18 +320,8 @@ void check_nifti_payload(const std::string& path) {
   } closer{f};
   unsigned char hdr[348];
   if (gzread(f, hdr, sizeof hdr) != static_cast<int>(sizeof hdr)) throw Error(ExitCode::InputInvalid, path + ": NIfTI header is truncated");
-  auto i32 = [&](int off, bool swap) {
-    std::uint32_t v;
-    std::memcpy(&v, hdr + off, 4);
-    if (swap) v = __builtin_bswap32(v);
-    return static_cast<std::int32_t>(v);
-  };
-  auto i16 = [&](int off, bool swap) {
-    std::uint16_t v;
-    std::memcpy(&v, hdr + off, 2);
-    if (swap) v = __builtin_bswap16(v);
-    return static_cast<std::int16_t>(v);
-  };
+  auto i32 = [&](int off, bool sw) { return checks::header_i32(hdr, off, sw); };
+  auto i16 = [&](int off, bool sw) { return checks::header_i16(hdr, off, sw); };
   bool swap = false;
   if (i32(0, false) != 348) {
     if (i32(0, false) == 540 || i32(0, true) == 540) return;  // NIfTI-2: left to ITK
@@ -352,14 +342,7 @@ void check_nifti_payload(const std::string& path) {
   // The geometry fields ITK turns into a direction matrix: a NaN there made
   // vnl's SVD abort the process (found by fuzzing). pixdim[1..ndim] always;
   // the quaternion and offsets when qform_code > 0; the affine rows when sform_code > 0.
-  auto f32 = [&](int off) {
-    std::uint32_t v;
-    std::memcpy(&v, hdr + off, 4);
-    if (swap) v = __builtin_bswap32(v);
-    float x;
-    std::memcpy(&x, &v, 4);
-    return x;
-  };
+  auto f32 = [&](int off) { return checks::header_f32(hdr, off, swap); };
   // Finite is not enough: an sform offset of -2e38 mm made the SVD spin
   // forever (found by fuzzing). No scan's voxel size, orientation or origin
   // comes near a kilometre (1e6 mm).

@@ -45,6 +45,7 @@ namespace {
 
 using ms::testing::expect_refused;
 using ms::testing::record_case;
+using ms::testing::slurp;
 using ms::testing::RunLimits;
 using ms::testing::RunResult;
 
@@ -135,11 +136,6 @@ std::vector<float> head_like(std::size_t n) {
   std::vector<float> v(n, -1000.0f);
   for (std::size_t i = 0; i < n; i += 3) v[i] = 40.0f;
   return v;
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
 }
 
 }  // namespace

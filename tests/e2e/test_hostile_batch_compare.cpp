@@ -48,6 +48,7 @@ namespace {
 
 using ms::testing::describe;
 using ms::testing::record_case;
+using ms::testing::slurp;
 using ms::testing::RunLimits;
 using ms::testing::RunResult;
 
@@ -64,13 +65,6 @@ fs::path root() {
     return p;
   }();
   return r;
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
 }
 
 Value load(const fs::path& p) { return Value::parse(slurp(p)); }

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <csignal>
+#include <iterator>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -29,12 +30,6 @@ double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 // SCRATCH.stderr next to scratch; in the temp folder when scratch's folder is
 // not one (an OUTDIR under a regular file).
@@ -112,6 +107,11 @@ const std::string& binary_under_test() {
 }
 
 // ---------------------------------------------------------------- TempCase
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+}
 
 void remove_tree(const fs::path& p) {
   std::error_code ec;

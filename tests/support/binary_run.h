@@ -53,6 +53,9 @@ class TempCase {
 // chmod-safe recursive removal (chmod 000 folders and files included).
 void remove_tree(const std::filesystem::path& p);
 
+// A file's bytes ("" when it cannot be read).
+std::string slurp(const std::filesystem::path& p);
+
 struct RunResult {
   bool exited = false;       // normal exit (not a signal)
   int code = -1;             // exit code when exited
