@@ -9,8 +9,11 @@
 #include <itkImageIOFactory.h>
 #include <itkImageSeriesWriter.h>
 #include <itkMetaDataObject.h>
+#include <itkMetaImageIO.h>
 #include <itkMetaImageIOFactory.h>
+#include <itkNiftiImageIO.h>
 #include <itkNiftiImageIOFactory.h>
+#include <itkNrrdImageIO.h>
 #include <itkNrrdImageIOFactory.h>
 
 #include <gdcmTrace.h>
@@ -584,6 +587,18 @@ void check_meta_header(const std::string& path) {
   }
 }
 
+// The reader of a volume file's kind, named explicitly: left to ITK's
+// factory, a header its reader refuses is offered to every other reader,
+// GDCM's among them, which asserted on one (fuzz_volume, bounded
+// exploration: a .nhdr holding MetaImage lines aborted the run, exit 134).
+// Files of no known kind (a mask in another ITK format) keep the factory.
+itk::ImageIOBase::Pointer image_io_for(const std::string& kind, const std::string& path) {
+  if (kind == "nifti") return itk::NiftiImageIO::New().GetPointer();
+  if (kind == "nrrd") return itk::NrrdImageIO::New().GetPointer();
+  if (kind == "meta") return itk::MetaImageIO::New().GetPointer();
+  return itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::CommonEnums::IOFileMode::ReadMode);
+}
+
 // What the header declares (ITK's ImageIO reads it, no pixels), before any
 // allocation: one scalar component, at most three dimensions (a fourth of
 // size 1 is fine), and a run on that many voxels within the memory budget.
@@ -591,8 +606,9 @@ void check_meta_header(const std::string& path) {
 // be read: the reader that follows says why).
 std::uint64_t check_declared_size(const std::string& path, const char* what, std::uint64_t budget) {
   StderrCapture quiet;  // the reader that follows reports any failure
-  const itk::ImageIOBase::Pointer io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::CommonEnums::IOFileMode::ReadMode);
-  if (!io) return 0;  // the reader says why
+  const std::string kind = volume_kind(path);
+  const itk::ImageIOBase::Pointer io = image_io_for(kind, path);
+  if (!io || (!kind.empty() && !io->CanReadFile(path.c_str()))) return 0;  // the reader says why
   io->SetFileName(path);
   long double voxels = 1, stored = 0;
   unsigned components = 1, ndims = 0;
@@ -652,6 +668,7 @@ LoadedScan read_volume_file(const std::string& path, const std::string& kind, co
   if (kind == "nifti" && opt.orientation.empty() && checks::nifti_orientation(path, &why) == checks::NiftiOrientation::Disagree)
     throw Error(ExitCode::InputInvalid, path + ": NIfTI " + why + "; give the orientation with --orientation");
   auto reader = itk::ImageFileReader<FloatImage>::New();
+  reader->SetImageIO(image_io_for(kind, path));
   reader->SetFileName(path);
   std::string note;
   if (const std::string failed = try_update(reader); !failed.empty()) {
@@ -667,6 +684,7 @@ LoadedScan read_volume_file(const std::string& path, const std::string& kind, co
     const std::uint64_t declared = check_declared_size(patched, "volume", checks::effective_budget(opt.max_memory_bytes));
     checks::check_data_holds(path, kind, checks::data_layout(path, kind, opt.allow_external_data_files), declared);
     reader = itk::ImageFileReader<FloatImage>::New();
+    reader->SetImageIO(image_io_for(kind, path));
     reader->SetFileName(patched);
     if (const std::string failed2 = try_update(reader); !failed2.empty())
       throw Error(ExitCode::InputInvalid, path + ": cannot read " + kind + " volume: " + failed2);
@@ -795,6 +813,7 @@ FloatImage::Pointer read_float_image(const std::string& path, const char* what) 
   if (::access(path.c_str(), R_OK) != 0) throw Error(ExitCode::InputNotFound, path + ": cannot be read (" + std::strerror(errno) + ")");
   check_before_reading(path, what, ReadOptions{});
   auto reader = itk::ImageFileReader<FloatImage>::New();
+  if (const std::string kind = volume_kind(path); !kind.empty()) reader->SetImageIO(image_io_for(kind, path));
   reader->SetFileName(path);
   if (const std::string failed = try_update(reader); !failed.empty())
     throw Error(ExitCode::InputInvalid, path + ": cannot read " + what + ": " + failed);
