@@ -131,7 +131,8 @@ void remove_tree(const fs::path& p) {
 
 TempCase::TempCase(const std::string& prefix) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const std::string name = info ? std::string(info->test_suite_name()) + "_" + info->name() : "case";
+  std::string name = info ? std::string(info->test_suite_name()) + "_" + info->name() : "case";
+  std::replace(name.begin(), name.end(), '/', '_');  // parameterised: Prefix/Suite.Test/Case
   root_ = fs::temp_directory_path() / (prefix + "_" + name + "_" + std::to_string(::getpid()));
   remove_tree(root_);
   fs::create_directories(root_);
