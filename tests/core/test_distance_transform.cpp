@@ -1,11 +1,17 @@
 // Distance transforms and ball morphology (core/distance_transform) against
 // brute force on random blobs in anisotropic grids, including objects cut by
-// the grid's faces (where the boundary conventions matter).
+// the grid's faces (where the boundary conventions matter), and against ITK's
+// signed Maurer distance map, which the header says they equal.
 #include <gtest/gtest.h>
+#include <itkImage.h>
+#include <itkSignedMaurerDistanceMapImageFilter.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <random>
+#include <string>
 
 #include "core/distance_transform.h"
 
@@ -227,3 +233,153 @@ TEST(DistanceTransform, TruncatedDepthIsExactUpToItsCap) {
 }
 
 }  // namespace
+
+// ---------------------------------------------------------------- against ITK's signed Maurer map
+//
+// The header's contract in ITK's terms, with itk::SignedMaurerDistanceMapImageFilter
+// (background 0, image spacing, inside negative) giving S, or S2 with SquaredDistance:
+//   squared_distance_transform(mask) = max(S2, 0)   (0 on the object; outside, the
+//                                                    nearest object voxel is a contour voxel)
+//   depth_inside(mask)               = max(-S, 0)   (26-neighbour contour, grid faces no contour)
+// and their truncated forms equal those wherever the value is within the bound.
+
+namespace {
+
+// ITK's signed Maurer map of a 0/1 mask (x-fastest, as ITK stores it).
+std::vector<float> itk_maurer(const std::vector<std::uint8_t>& m, const Dims3& d, const std::array<double, 3>& spacing,
+                              bool squared) {
+  using In = itk::Image<unsigned char, 3>;
+  using Out = itk::Image<float, 3>;
+  auto image = In::New();
+  In::SizeType size;
+  In::SpacingType sp;
+  for (unsigned a = 0; a < 3; ++a) size[a] = d[a], sp[a] = spacing[a];
+  image->SetRegions(In::RegionType(size));
+  image->SetSpacing(sp);
+  image->Allocate();
+  std::copy(m.begin(), m.end(), image->GetBufferPointer());
+  auto f = itk::SignedMaurerDistanceMapImageFilter<In, Out>::New();
+  f->SetInput(image);
+  f->SetBackgroundValue(0);
+  f->SetInsideIsPositive(false);
+  f->SetUseImageSpacing(true);
+  f->SetSquaredDistance(squared);
+  f->Update();
+  const float* p = f->GetOutput()->GetBufferPointer();
+  return {p, p + m.size()};
+}
+
+// A test grid: a mask, its dimensions and spacing.
+struct Grid {
+  std::string name;
+  Dims3 dims;
+  std::array<double, 3> spacing;
+  std::vector<std::uint8_t> mask;
+};
+
+Grid grid(const std::string& name, const Dims3& d, const std::array<double, 3>& spacing,
+          const std::function<bool(long, long, long)>& inside) {
+  Grid g{name, d, spacing, std::vector<std::uint8_t>(d[0] * d[1] * d[2])};
+  each(d, [&](long i, long j, long k, std::size_t c) { g.mask[c] = inside(i, j, k); });
+  return g;
+}
+
+std::vector<Grid> itk_test_grids() {
+  std::vector<Grid> g;
+  // Hand-built.
+  g.push_back(grid("one voxel", {21, 17, 13}, {0.7, 1.0, 2.5}, [](long i, long j, long k) { return i == 10 && j == 8 && k == 6; }));
+  g.push_back(grid("two corners", {16, 12, 9}, {0.4, 0.9, 1.7},
+                   [](long i, long j, long k) { return (i == 0 && j == 0 && k == 0) || (i == 15 && j == 11 && k == 8); }));
+  g.push_back(grid("box, isotropic", {20, 18, 14}, {1, 1, 1},
+                   [](long i, long j, long k) { return i >= 5 && i < 14 && j >= 4 && j < 11 && k >= 4 && k < 9; }));
+  g.push_back(grid("box, anisotropic", {20, 18, 14}, {0.5, 0.8, 3.0},
+                   [](long i, long j, long k) { return i >= 3 && i < 17 && j >= 2 && j < 15 && k >= 3 && k < 11; }));
+  g.push_back(grid("slab through five faces", {15, 13, 11}, {0.6, 0.75, 1.5}, [](long, long, long k) { return k >= 3; }));
+  g.push_back(grid("ellipsoid cut by a face", {24, 20, 16}, {0.5, 0.6, 1.25}, [](long i, long j, long k) {
+    const double x = (i - 11.5) / 10.0, y = (j - 9.5) / 8.0, z = (k - 13.0) / 6.0;
+    return x * x + y * y + z * z <= 1;
+  }));
+  g.push_back(grid("hollow sphere", {23, 23, 23}, {0.8, 0.8, 0.8}, [](long i, long j, long k) {
+    const double r2 = (i - 11.0) * (i - 11.0) + (j - 11.0) * (j - 11.0) + (k - 11.0) * (k - 11.0);
+    return r2 <= 100 && r2 >= 16;
+  }));
+  // Random: blobs touching the faces, and sparse points far apart.
+  for (unsigned seed : {1u, 2u, 3u})
+    g.push_back({"blobs " + std::to_string(seed), kDims, kSpacing, blobs(kDims, seed, 0.5f + 0.01f * seed)});
+  g.push_back({"large blobs", {48, 40, 30}, {0.35, 0.9, 2.0}, blobs({48, 40, 30}, 7, 0.5f)});
+  std::mt19937 rng(11);
+  g.push_back(grid("sparse points", {40, 33, 27}, {0.45, 1.1, 2.3},
+                   [&](long, long, long) { return std::uniform_real_distribution<double>(0, 1)(rng) < 0.004; }));
+  return g;
+}
+
+// Largest differences of `got` from `want` over the voxels where `use`.
+struct Diff {
+  double abs = 0, rel = 0;  // rel: |got - want| / max(1, |want|)
+  std::size_t n = 0;
+  void add(double got, double want) {
+    const double e = std::abs(got - want);
+    abs = std::max(abs, e);
+    rel = std::max(rel, e / std::max(1.0, std::abs(want)));
+    ++n;
+  }
+};
+
+}  // namespace
+
+TEST(DistanceTransform, EqualsItkSignedMaurerMap) {
+  Diff squared, depth, distance;
+  for (const Grid& g : itk_test_grids()) {
+    SCOPED_TRACE(g.name);
+    const auto s = itk_maurer(g.mask, g.dims, g.spacing, false);
+    const auto s2 = itk_maurer(g.mask, g.dims, g.spacing, true);
+    const auto d2 = ms::squared_distance_transform(g.mask.data(), g.dims, g.spacing);
+    const auto depth_in = ms::depth_inside(g.mask.data(), g.dims, g.spacing);
+    std::size_t inside = 0, deep = 0;
+    each(g.dims, [&](long i, long j, long k, std::size_t c) {
+      const double want_d2 = std::max(0.0f, s2[c]), want_depth = std::max(0.0f, -s[c]);
+      ASSERT_LE(std::abs(d2[c] - want_d2), 1e-4 * std::max(1.0, want_d2)) << "squared distance at " << i << " " << j << " " << k;
+      ASSERT_LE(std::abs(depth_in[c] - want_depth), 1e-4 * std::max(1.0, want_depth)) << "depth at " << i << " " << j << " " << k;
+      // Outside, the unsigned distance is ITK's too (and the square root of the squared one).
+      if (!g.mask[c]) ASSERT_LE(std::abs(std::sqrt(d2[c]) - s[c]), 1e-4 * std::max(1.0f, s[c])) << i << " " << j << " " << k;
+      squared.add(d2[c], want_d2);
+      depth.add(depth_in[c], want_depth);
+      if (!g.mask[c]) distance.add(std::sqrt(d2[c]), s[c]);
+      inside += g.mask[c] != 0;
+      deep += want_depth > 0;
+    });
+    EXPECT_GT(inside, 0u);
+    if (g.name != "one voxel" && g.name != "two corners" && g.name != "sparse points")
+      EXPECT_GT(deep, 0u) << "no voxel inside the contour: the depth is not tested on this grid";
+  }
+  std::printf("vs ITK SignedMaurerDistanceMap: squared distance max |diff| %.3g (rel %.3g, %zu voxels); "
+              "depth max |diff| %.3g (rel %.3g); distance outside max |diff| %.3g (rel %.3g)\n",
+              squared.abs, squared.rel, squared.n, depth.abs, depth.rel, distance.abs, distance.rel);
+}
+
+// The truncated forms (max_sq, max_depth) equal ITK's map within their bound
+// and exceed the bound beyond it (values within float rounding of the bound,
+// e.g. a depth of 6 x 0.5 mm against 3 mm, may fall on either side).
+TEST(DistanceTransform, TruncatedFormsEqualItkWithinTheirBound) {
+  auto check = [](float got, double want, double bound, const char* what, long i, long j, long k) {
+    if (want <= bound * (1 - 1e-5))
+      EXPECT_LE(std::abs(got - want), 1e-4 * std::max(1.0, want)) << what << " within the bound at " << i << " " << j << " " << k;
+    else if (want >= bound * (1 + 1e-5))
+      EXPECT_GT(got, bound * (1 - 1e-5)) << what << " beyond the bound at " << i << " " << j << " " << k;
+  };
+  for (const Grid& g : itk_test_grids()) {
+    SCOPED_TRACE(g.name);
+    const auto s = itk_maurer(g.mask, g.dims, g.spacing, false);
+    const auto s2 = itk_maurer(g.mask, g.dims, g.spacing, true);
+    for (float bound : {0.5f, 1.2f, 3.0f}) {
+      SCOPED_TRACE("bound " + std::to_string(bound));
+      const auto d2 = ms::squared_distance_transform(g.mask.data(), g.dims, g.spacing, bound * bound);
+      const auto depth_in = ms::depth_inside(g.mask.data(), g.dims, g.spacing, bound);
+      each(g.dims, [&](long i, long j, long k, std::size_t c) {
+        check(d2[c], std::max(0.0f, s2[c]), bound * bound, "squared distance", i, j, k);
+        check(depth_in[c], std::max(0.0f, -s[c]), bound, "depth", i, j, k);
+        ASSERT_FALSE(HasFailure());
+      });
+    }
+  }
+}
