@@ -63,233 +63,334 @@ LandmarkSet saf_anchors(const LandmarkSet& detected, const LandmarkSet& referenc
 
 namespace {
 
-// The SAF on a mesh already cut along the disks' circles (anchors on its
-// surface, disk radius with the tolerance that takes in the cut's vertices).
-SafResult saf_on(const Mesh& mesh, const LandmarkSet& anchors, const Plane& plane, const SafOptions& opt) {
-  SafResult r;
-  const std::size_t nf = mesh.faces.size();
-  // The closest-point tree and the Laplacian are independent: built side by side.
-  std::unique_ptr<geometry::ClosestPointIndex> index_ptr;
-  std::unique_ptr<HarmonicFieldSolver> solver_ptr;
-#pragma omp parallel sections
-  {
-#pragma omp section
-    index_ptr = std::make_unique<geometry::ClosestPointIndex>(mesh);
-#pragma omp section
-    solver_ptr = std::make_unique<HarmonicFieldSolver>(mesh, opt.disk_radius_mm);
-  }
-  const geometry::ClosestPointIndex& index = *index_ptr;
-  HarmonicFieldSolver& solver = *solver_ptr;
-  const LandmarkSet& lm = anchors;  // on the surface already (compute_saf projected them)
-  r.disk_centres = lm;
-  std::map<std::pair<std::string, std::string>, std::vector<Vec3>> grads;
-  auto gradient = [&](const std::string& a, const std::string& b) -> const std::vector<Vec3>& {
-    auto& g = grads[{a, b}];
-    if (g.empty()) g = face_gradients(mesh, solver.solve(*lm.find(a), *lm.find(b)));
-    return g;
-  };
-  auto theta = [&](const Configuration& c) {
-    return signed_angle_field(mesh, gradient(c.a, c.b), gradient(c.c, c.d), opt.min_gradient_ratio);
-  };
+// The harmonic field u_ab (0 on the disk at a, 1 on the disk at b) is named
+// by its two landmarks.
+using FieldKey = std::pair<std::string, std::string>;
 
-  // A configuration is computable when it and its mirror have all their landmarks.
-  auto complete = [&](const Configuration& c) {
-    const Configuration m = mirrored(c);
-    for (const auto* n : {&c.a, &c.b, &c.c, &c.d, &m.a, &m.b, &m.c, &m.d})
-      if (!lm.has(*n)) return false;
-    return true;
-  };
-  std::unique_ptr<SurfaceSmoother> smoother;
-  {
-    std::vector<std::pair<Vec3, Vec3>> pairs;
-    for (const auto& c : opt.configurations)
-      if (complete(c))
-        for (const auto& k : {c, mirrored(c)})
-          for (const auto& [x, y] : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)})
-            pairs.emplace_back(*lm.find(x), *lm.find(y));
-    // The two factorisations (harmonic fields, heat smoother) are independent
-    // and single-threaded: side by side.
+// A configuration is computable when it and its mirror have all their landmarks.
+bool complete(const Configuration& c, const LandmarkSet& lm) {
+  const Configuration m = mirrored(c);
+  for (const auto* n : {&c.a, &c.b, &c.c, &c.d, &m.a, &m.b, &m.c, &m.d})
+    if (!lm.has(*n)) return false;
+  return true;
+}
+
+// The fields the computable configurations compare, C then σ(C), each as
+// ((a, b), (c, d)); a field shared by two configurations appears twice.
+std::vector<FieldKey> fields_of_configurations(const std::vector<Configuration>& configurations,
+                                               const LandmarkSet& lm) {
+  std::vector<FieldKey> out;
+  for (const auto& c : configurations)
+    if (complete(c, lm))
+      for (const auto& k : {c, mirrored(c)})
+        for (const auto& ab : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)}) out.push_back(ab);
+  return out;
+}
+
+std::vector<FieldKey> distinct(const std::vector<FieldKey>& keys) {
+  std::vector<FieldKey> out;
+  for (const auto& k : keys)
+    if (std::find(out.begin(), out.end(), k) == out.end()) out.push_back(k);
+  return out;
+}
+
+// The closest-point tree (mirror correspondence) and the cotangent Laplacian
+// (harmonic fields) are independent: built side by side.
+struct SurfaceOperators {
+  std::unique_ptr<geometry::ClosestPointIndex> index;
+  std::unique_ptr<HarmonicFieldSolver> solver;
+};
+
+SurfaceOperators build_index_and_laplacian(const Mesh& mesh, double disk_radius_mm) {
+  SurfaceOperators ops;
 #pragma omp parallel sections
-    {
-#pragma omp section
-      solver.prepare(pairs);
-#pragma omp section
-      if (opt.smoothing_mm > 0) smoother = std::make_unique<SurfaceSmoother>(mesh, opt.smoothing_mm);
-    }
-  }
   {
-    // Every field the configurations need, on the shared factorisation in
-    // parallel; anything off it (overlapping disks, a failed shared
-    // factorisation) is left to gradient(), serially.
-    std::vector<std::pair<std::string, std::string>> need;
-    for (const auto& c : opt.configurations)
-      if (complete(c))
-        for (const auto& k : {c, mirrored(c)})
-          for (const auto& ab : {std::make_pair(k.a, k.b), std::make_pair(k.c, k.d)})
-            if (std::find(need.begin(), need.end(), ab) == need.end()) need.push_back(ab);
+#pragma omp section
+    ops.index = std::make_unique<geometry::ClosestPointIndex>(mesh);
+#pragma omp section
+    ops.solver = std::make_unique<HarmonicFieldSolver>(mesh, disk_radius_mm);
+  }
+  return ops;
+}
+
+// One factorisation serves every constraint set (HarmonicFieldSolver::prepare);
+// the heat smoother's (σ > 0) is the other. Both are single-threaded and
+// independent: side by side. Returns the smoother (null when σ = 0).
+std::unique_ptr<SurfaceSmoother> prepare_factorisations(HarmonicFieldSolver& solver, const Mesh& mesh,
+                                                        const std::vector<FieldKey>& fields,
+                                                        const LandmarkSet& lm, double smoothing_mm) {
+  std::vector<std::pair<Vec3, Vec3>> pairs;
+  for (const auto& [a, b] : fields) pairs.emplace_back(*lm.find(a), *lm.find(b));
+  std::unique_ptr<SurfaceSmoother> smoother;
+#pragma omp parallel sections
+  {
+#pragma omp section
+    solver.prepare(pairs);
+#pragma omp section
+    if (smoothing_mm > 0) smoother = std::make_unique<SurfaceSmoother>(mesh, smoothing_mm);
+  }
+  return smoother;
+}
+
+// The per-face gradients ∇u_ab, each solved once.
+class FieldGradients {
+ public:
+  FieldGradients(const Mesh& mesh, HarmonicFieldSolver& solver, const LandmarkSet& lm)
+      : mesh_(mesh), solver_(solver), lm_(lm) {}
+
+  // Every field in `need` on the shared factorisation, in parallel; anything
+  // off it (overlapping disks, a failed shared factorisation) is left to
+  // get(), serially.
+  void solve_prepared(const std::vector<FieldKey>& need) {
     std::vector<std::vector<Vec3>> g(need.size());
 #pragma omp parallel for schedule(dynamic)
     for (int i = 0; i < static_cast<int>(need.size()); ++i) {
+      const FieldKey& ab = need[static_cast<std::size_t>(i)];
       std::vector<double> u;
       try {
-        if (solver.solve_prepared(*lm.find(need[static_cast<std::size_t>(i)].first), *lm.find(need[static_cast<std::size_t>(i)].second), u))
-          g[static_cast<std::size_t>(i)] = face_gradients(mesh, u);
+        if (solver_.solve_prepared(*lm_.find(ab.first), *lm_.find(ab.second), u))
+          g[static_cast<std::size_t>(i)] = face_gradients(mesh_, u);
       } catch (const std::exception&) {
-        // gradient() reports it
+        // get() reports it
       }
     }
     for (std::size_t i = 0; i < need.size(); ++i)
-      if (!g[i].empty()) grads[need[i]] = std::move(g[i]);
+      if (!g[i].empty()) grads_[need[i]] = std::move(g[i]);
   }
+
+  const std::vector<Vec3>& get(const std::string& a, const std::string& b) {
+    auto& g = grads_[{a, b}];
+    if (g.empty()) g = face_gradients(mesh_, solver_.solve(*lm_.find(a), *lm_.find(b)));
+    return g;
+  }
+
+ private:
+  const Mesh& mesh_;
+  HarmonicFieldSolver& solver_;
+  const LandmarkSet& lm_;
+  std::map<FieldKey, std::vector<Vec3>> grads_;
+};
+
+// θ_C per face.
+std::vector<double> theta(const Mesh& mesh, FieldGradients& gradients, const Configuration& c, double ratio) {
+  return signed_angle_field(mesh, gradients.get(c.a, c.b), gradients.get(c.c, c.d), ratio);
+}
+
+// Mirror correspondence, smoothed: σ(v) = the closest surface point to the
+// reflected vertex (face + barycentric coordinates).
+std::vector<geometry::ClosestHit> vertex_mirrors(const Mesh& mesh, const geometry::ClosestPointIndex& index,
+                                                 const Plane& plane) {
   const std::size_t nv = mesh.vertices.size();
-  const auto area = geometry::face_areas(mesh);
-  // Mirror correspondence. Smoothed: σ(v) = closest surface point to the
-  // reflected vertex (face + barycentric coordinates). Per face: σ(f) = face
-  // containing the closest surface point to the reflected centroid.
-  std::vector<geometry::ClosestHit> vertex_mirror;
-  std::vector<int> sigma;
-  if (smoother) {
-    vertex_mirror.resize(nv);
+  std::vector<geometry::ClosestHit> out(nv);
 #pragma omp parallel for schedule(static)
-    for (long v = 0; v < static_cast<long>(nv); ++v)
-      vertex_mirror[static_cast<std::size_t>(v)] = index.closest(plane.reflect(mesh.vertices[static_cast<std::size_t>(v)]));
-  } else {
-    sigma.resize(nf);
+  for (long v = 0; v < static_cast<long>(nv); ++v)
+    out[static_cast<std::size_t>(v)] = index.closest(plane.reflect(mesh.vertices[static_cast<std::size_t>(v)]));
+  return out;
+}
+
+// Mirror correspondence per face: σ(f) = the face containing the closest
+// surface point to the reflected centroid.
+std::vector<int> face_mirrors(const Mesh& mesh, const geometry::ClosestPointIndex& index, const Plane& plane) {
+  const std::size_t nf = mesh.faces.size();
+  std::vector<int> sigma(nf);
 #pragma omp parallel for schedule(static)
-    for (long fl = 0; fl < static_cast<long>(nf); ++fl) {
-      const std::size_t f = static_cast<std::size_t>(fl);
-      const auto& t = mesh.faces[f];
-      const Vec3 c = (1.0 / 3.0) * (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]);
-      sigma[f] = index.closest(plane.reflect(c)).face;
-    }
+  for (long fl = 0; fl < static_cast<long>(nf); ++fl) {
+    const std::size_t f = static_cast<std::size_t>(fl);
+    const auto& t = mesh.faces[f];
+    const Vec3 c = (1.0 / 3.0) * (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]);
+    sigma[f] = index.closest(plane.reflect(c)).face;
   }
-  // Sums of a_k for the SAF map: per vertex (smoothed) or per face.
-  std::vector<double> map_sum(smoother ? nv : nf, 0.0);
-  std::vector<int> map_cnt(map_sum.size(), 0);
-  double score_sum = 0, free_sum = 0;
-  int used = 0;
-  for (const auto& c : opt.configurations) {
-    const Configuration m = mirrored(c);
-    if (!complete(c)) {
-      r.skipped.push_back(c.name);
-      continue;
-    }
-    std::vector<double> tc, tm;
-    try {
-      tc = theta(c);
-      tm = theta(m);
-    } catch (const std::exception&) {
-      r.skipped.push_back(c.name);
-      continue;
-    }
-    if (opt.keep_fields && !smoother) {  // the fields the comparison uses: raw per face
-      r.fields.push_back({c.name, false, c, tc});
-      r.fields.push_back({c.name, true, m, tm});
-    }
-    double num = 0, den = 0;
-    if (smoother) {
-      // Smoothed fields per vertex, compared at the mirror point with
-      // barycentric interpolation (continuous, so no ties between faces).
-      auto smoothed = [&](const std::vector<double>& th) {
-        std::vector<double> w(nf, 0.0);
-        for (std::size_t f = 0; f < nf; ++f) w[f] = std::isnan(th[f]) ? 0.0 : area[f];
-        return smoother->smooth_face_angles(th, w);
-      };
-      std::vector<double> sc, sm;
+  return sigma;
+}
+
+// Heat-kernel smoothing of θ per vertex (circular mean), masked faces weighted 0.
+std::vector<double> smoothed_field(const SurfaceSmoother& smoother, const std::vector<double>& th,
+                                   const std::vector<double>& area) {
+  std::vector<double> w(th.size(), 0.0);
+  for (std::size_t f = 0; f < th.size(); ++f) w[f] = std::isnan(th[f]) ? 0.0 : area[f];
+  return smoother.smooth_face_angles(th, w);
+}
+
+// θ_C and θ_σ(C) of one configuration.
+struct FieldPair {
+  std::vector<double> c, m;
+};
+
+FieldPair smoothed_fields(const SurfaceSmoother& smoother, const FieldPair& raw, const std::vector<double>& area) {
+  FieldPair s;
 #pragma omp parallel sections
-      {
+  {
 #pragma omp section
-        sc = smoothed(tc);
+    s.c = smoothed_field(smoother, raw.c, area);
 #pragma omp section
-        sm = smoothed(tm);
-      }
-      if (opt.keep_fields) {  // the fields the comparison uses: smoothed per vertex
-        r.fields.push_back({c.name, false, c, sc});
-        r.fields.push_back({c.name, true, m, sm});
-      }
-      auto at_mirror = [&](const std::vector<double>& s, std::size_t v) {
-        const auto& h = vertex_mirror[v];
-        const auto& t = mesh.faces[h.face];
-        double sn = 0, cs = 0;
-        for (int k = 0; k < 3; ++k) {
-          if (std::isnan(s[t[k]])) return std::nan("");
-          sn += h.bary[k] * std::sin(s[t[k]]);
-          cs += h.bary[k] * std::cos(s[t[k]]);
-        }
-        return std::atan2(sn, cs);
-      };
-      const auto& va = smoother->vertex_areas();
-      for (std::size_t v = 0; v < sc.size(); ++v) {
-        const double r1 = wrap_angle(sc[v] + at_mirror(sm, v)), r2 = wrap_angle(sm[v] + at_mirror(sc, v));
-        if (std::isnan(r1) || std::isnan(r2)) continue;
-        const double a = 0.5 * (std::abs(r1) + std::abs(r2));
-        num += va[v] * a;
-        den += va[v];
-        map_sum[v] += a;
-        map_cnt[v] += 1;
-      }
-    } else {
-      for (std::size_t f = 0; f < nf; ++f) {
-        const std::size_t g = static_cast<std::size_t>(sigma[f]);
-        if (std::isnan(tc[f]) || std::isnan(tm[f]) || std::isnan(tc[g]) || std::isnan(tm[g])) continue;
-        const double a = 0.5 * (std::abs(wrap_angle(tc[f] + tm[g])) + std::abs(wrap_angle(tm[f] + tc[g])));
-        num += area[f] * a;
-        den += area[f];
-        map_sum[f] += a;
-        map_cnt[f] += 1;
-      }
-    }
-    const double s = den > 0 ? num / den : 0.0;
-    r.per_configuration[c.name] = s;
-    score_sum += s;
-    // Correspondence-free: circular W1 between the area-weighted distributions
-    // of θ_C and -θ_σ(C) (360 bins).
-    const int B = 360;
-    std::vector<double> h1(B, 0.0), h2(B, 0.0);
-    double w1 = 0, w2 = 0;
-    auto bin = [&](double a) { return std::min(B - 1, static_cast<int>((a + kPi) / (2 * kPi) * B)); };
-    for (std::size_t f = 0; f < nf; ++f) {
-      if (!std::isnan(tc[f])) h1[bin(tc[f])] += area[f], w1 += area[f];
-      if (!std::isnan(tm[f])) h2[bin(wrap_angle(-tm[f]))] += area[f], w2 += area[f];
-    }
-    std::vector<double> diff(B);
-    double c1 = 0, c2 = 0;
-    for (int b = 0; b < B; ++b) {
-      c1 += h1[b] / w1;
-      c2 += h2[b] / w2;
-      diff[b] = c1 - c2;
-    }
-    std::vector<double> sorted = diff;
-    std::nth_element(sorted.begin(), sorted.begin() + B / 2, sorted.end());
-    const double med = sorted[B / 2];
-    double w = 0;
-    for (int b = 0; b < B; ++b) w += std::abs(diff[b] - med) * (2 * kPi / B);
-    free_sum += w;
-    ++used;
+    s.m = smoothed_field(smoother, raw.m, area);
   }
-  r.factorisations = solver.factorisations();
-  if (used == 0) return r;
-  r.score = score_sum / used;
-  r.correspondence_free = free_sum / used;
-  // SAF map: mean over configurations per vertex; per face, then the
-  // area-weighted mean of the incident faces.
-  r.per_vertex.assign(nv, 0.0);
-  if (smoother) {
-    for (std::size_t v = 0; v < nv; ++v)
-      if (map_cnt[v] > 0) r.per_vertex[v] = map_sum[v] / map_cnt[v];
-    return r;
+  return s;
+}
+
+// A smoothed field at a mirror point: barycentric interpolation of the angle
+// (continuous, so no ties between faces); NaN when a corner is masked.
+double at_mirror(const Mesh& mesh, const std::vector<double>& s, const geometry::ClosestHit& h) {
+  const auto& t = mesh.faces[h.face];
+  double sn = 0, cs = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (std::isnan(s[t[k]])) return std::nan("");
+    sn += h.bary[k] * std::sin(s[t[k]]);
+    cs += h.bary[k] * std::cos(s[t[k]]);
   }
-  std::vector<double> vw(nv, 0.0);
-  for (std::size_t f = 0; f < nf; ++f) {
-    if (map_cnt[f] == 0) continue;
-    const double a = map_sum[f] / map_cnt[f];
+  return std::atan2(sn, cs);
+}
+
+// Sums of a_k over the configurations for the SAF map: per vertex (smoothed) or per face.
+struct MapSums {
+  explicit MapSums(std::size_t n) : sum(n, 0.0), count(n, 0) {}
+  std::vector<double> sum;
+  std::vector<int> count;
+};
+
+// The area-weighted mean of a_k(v) = ½(|wrap(θ̃_C(v) + θ̃_σC(σ(v)))| + |wrap(θ̃_σC(v) + θ̃_C(σ(v)))|).
+double mirror_score_per_vertex(const Mesh& mesh, const FieldPair& s, const std::vector<geometry::ClosestHit>& mirror,
+                               const std::vector<double>& vertex_area, MapSums& map) {
+  double num = 0, den = 0;
+  for (std::size_t v = 0; v < s.c.size(); ++v) {
+    const double r1 = wrap_angle(s.c[v] + at_mirror(mesh, s.m, mirror[v]));
+    const double r2 = wrap_angle(s.m[v] + at_mirror(mesh, s.c, mirror[v]));
+    if (std::isnan(r1) || std::isnan(r2)) continue;
+    const double a = 0.5 * (std::abs(r1) + std::abs(r2));
+    num += vertex_area[v] * a;
+    den += vertex_area[v];
+    map.sum[v] += a;
+    map.count[v] += 1;
+  }
+  return den > 0 ? num / den : 0.0;
+}
+
+// The area-weighted mean of a_k(f) = ½(|wrap(θ_C(f) + θ_σC(σ(f)))| + |wrap(θ_σC(f) + θ_C(σ(f)))|).
+double mirror_score_per_face(const FieldPair& t, const std::vector<int>& sigma, const std::vector<double>& area,
+                             MapSums& map) {
+  double num = 0, den = 0;
+  for (std::size_t f = 0; f < area.size(); ++f) {
+    const std::size_t g = static_cast<std::size_t>(sigma[f]);
+    if (std::isnan(t.c[f]) || std::isnan(t.m[f]) || std::isnan(t.c[g]) || std::isnan(t.m[g])) continue;
+    const double a = 0.5 * (std::abs(wrap_angle(t.c[f] + t.m[g])) + std::abs(wrap_angle(t.m[f] + t.c[g])));
+    num += area[f] * a;
+    den += area[f];
+    map.sum[f] += a;
+    map.count[f] += 1;
+  }
+  return den > 0 ? num / den : 0.0;
+}
+
+// Correspondence-free: circular W1 between the area-weighted distributions
+// of θ_C and -θ_σ(C) (360 bins).
+double correspondence_free_score(const FieldPair& t, const std::vector<double>& area) {
+  const int B = 360;
+  std::vector<double> h1(B, 0.0), h2(B, 0.0);
+  double w1 = 0, w2 = 0;
+  const auto bin = [&](double a) { return std::min(B - 1, static_cast<int>((a + kPi) / (2 * kPi) * B)); };
+  for (std::size_t f = 0; f < area.size(); ++f) {
+    if (!std::isnan(t.c[f])) h1[bin(t.c[f])] += area[f], w1 += area[f];
+    if (!std::isnan(t.m[f])) h2[bin(wrap_angle(-t.m[f]))] += area[f], w2 += area[f];
+  }
+  std::vector<double> diff(B);
+  double c1 = 0, c2 = 0;
+  for (int b = 0; b < B; ++b) {
+    c1 += h1[b] / w1;
+    c2 += h2[b] / w2;
+    diff[b] = c1 - c2;
+  }
+  std::vector<double> sorted = diff;
+  std::nth_element(sorted.begin(), sorted.begin() + B / 2, sorted.end());
+  const double med = sorted[B / 2];
+  double w = 0;
+  for (int b = 0; b < B; ++b) w += std::abs(diff[b] - med) * (2 * kPi / B);
+  return w;
+}
+
+// SAF map, smoothed: the mean over configurations per vertex.
+std::vector<double> saf_map_per_vertex(const MapSums& map) {
+  std::vector<double> out(map.sum.size(), 0.0);
+  for (std::size_t v = 0; v < out.size(); ++v)
+    if (map.count[v] > 0) out[v] = map.sum[v] / map.count[v];
+  return out;
+}
+
+// SAF map, per face: the mean over configurations per face, then the
+// area-weighted mean of the incident faces.
+std::vector<double> saf_map_from_faces(const Mesh& mesh, const MapSums& map, const std::vector<double>& area) {
+  const std::size_t nv = mesh.vertices.size();
+  std::vector<double> out(nv, 0.0), vw(nv, 0.0);
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    if (map.count[f] == 0) continue;
+    const double a = map.sum[f] / map.count[f];
     for (int k = 0; k < 3; ++k) {
-      r.per_vertex[mesh.faces[f][k]] += area[f] * a;
+      out[mesh.faces[f][k]] += area[f] * a;
       vw[mesh.faces[f][k]] += area[f];
     }
   }
   for (std::size_t v = 0; v < nv; ++v)
-    if (vw[v] > 0) r.per_vertex[v] /= vw[v];
+    if (vw[v] > 0) out[v] /= vw[v];
+  return out;
+}
+
+// The SAF on a mesh already cut along the disks' circles (anchors on its
+// surface, disk radius with the tolerance that takes in the cut's vertices).
+SafResult saf_on(const Mesh& mesh, const LandmarkSet& anchors, const Plane& plane, const SafOptions& opt) {
+  SafResult r;
+  const LandmarkSet& lm = anchors;  // on the surface already (compute_saf projected them)
+  r.disk_centres = lm;
+  const SurfaceOperators ops = build_index_and_laplacian(mesh, opt.disk_radius_mm);
+  const std::vector<FieldKey> fields = fields_of_configurations(opt.configurations, lm);
+  const std::unique_ptr<SurfaceSmoother> smoother =
+      prepare_factorisations(*ops.solver, mesh, fields, lm, opt.smoothing_mm);
+  FieldGradients gradients(mesh, *ops.solver, lm);
+  gradients.solve_prepared(distinct(fields));
+  const auto area = geometry::face_areas(mesh);
+  const std::vector<geometry::ClosestHit> vertex_mirror =
+      smoother ? vertex_mirrors(mesh, *ops.index, plane) : std::vector<geometry::ClosestHit>{};
+  const std::vector<int> sigma = smoother ? std::vector<int>{} : face_mirrors(mesh, *ops.index, plane);
+  MapSums map(smoother ? mesh.vertices.size() : mesh.faces.size());
+  double score_sum = 0, free_sum = 0;
+  int used = 0;
+  for (const auto& c : opt.configurations) {
+    if (!complete(c, lm)) {
+      r.skipped.push_back(c.name);
+      continue;
+    }
+    const Configuration m = mirrored(c);
+    FieldPair t;
+    try {
+      t.c = theta(mesh, gradients, c, opt.min_gradient_ratio);
+      t.m = theta(mesh, gradients, m, opt.min_gradient_ratio);
+    } catch (const std::exception&) {
+      r.skipped.push_back(c.name);
+      continue;
+    }
+    double s = 0;
+    if (smoother) {
+      const FieldPair st = smoothed_fields(*smoother, t, area);
+      s = mirror_score_per_vertex(mesh, st, vertex_mirror, smoother->vertex_areas(), map);
+      if (opt.keep_fields) {  // the fields the comparison uses: smoothed per vertex
+        r.fields.push_back({c.name, false, c, st.c});
+        r.fields.push_back({c.name, true, m, st.m});
+      }
+    } else {
+      s = mirror_score_per_face(t, sigma, area, map);
+      if (opt.keep_fields) {  // the fields the comparison uses: raw per face
+        r.fields.push_back({c.name, false, c, t.c});
+        r.fields.push_back({c.name, true, m, t.m});
+      }
+    }
+    r.per_configuration[c.name] = s;
+    score_sum += s;
+    free_sum += correspondence_free_score(t, area);
+    ++used;
+  }
+  r.factorisations = ops.solver->factorisations();
+  if (used == 0) return r;
+  r.score = score_sum / used;
+  r.correspondence_free = free_sum / used;
+  r.per_vertex = smoother ? saf_map_per_vertex(map) : saf_map_from_faces(mesh, map, area);
   return r;
 }
 
