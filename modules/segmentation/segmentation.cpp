@@ -1,6 +1,7 @@
 // ITK-facing translation unit: no system Eigen here (ENGINEERING.md).
 #include "segmentation/segmentation.h"
 #include "segmentation/atlas_zone.h"
+#include "segmentation/voxel_ops.h"
 
 #include <itkImage.h>
 #include <itkRegionOfInterestImageFilter.h>
@@ -272,34 +273,11 @@ LabelImage::Pointer components(const MaskImage* m, bool fully_connected, std::si
 // the shape label map it builds on the way (perimeters of every component).
 MaskImage::Pointer filled(const MaskImage* in, bool fully_connected) {
   const auto size = in->GetLargestPossibleRegion().GetSize();
-  const Dims3 d{size[0], size[1], size[2]};
-  const std::size_t n = d[0] * d[1] * d[2];
-  auto background = MaskImage::New();
-  background->CopyInformation(in);
-  background->SetRegions(in->GetLargestPossibleRegion());
-  background->Allocate();
-  const auto* m = in->GetBufferPointer();
-  auto* bg = background->GetBufferPointer();
-  for (std::size_t i = 0; i < n; ++i) bg[i] = !m[i];
-  std::size_t n_background = 0;
-  const LabelImage::Pointer labels = components(background.GetPointer(), fully_connected, 0, &n_background);
-  const auto* lab = labels->GetBufferPointer();
-  std::vector<std::uint8_t> open(n_background + 1, 0);  // reaches a face
-  for (std::size_t k = 0; k < d[2]; ++k)
-    for (std::size_t j = 0; j < d[1]; ++j) {
-      const bool face = k == 0 || j == 0 || k + 1 == d[2] || j + 1 == d[1];
-      const std::size_t row = d[0] * (j + d[1] * k);
-      if (face)
-        for (std::size_t i = 0; i < d[0]; ++i) open[lab[row + i]] = 1;
-      else
-        open[lab[row]] = open[lab[row + d[0] - 1]] = 1;
-    }
   auto out = MaskImage::New();
   out->CopyInformation(in);
   out->SetRegions(in->GetLargestPossibleRegion());
   out->Allocate();
-  auto* o = out->GetBufferPointer();
-  for (std::size_t i = 0; i < n; ++i) o[i] = m[i] || !open[lab[i]];
+  fill_holes(in->GetBufferPointer(), Dims3{size[0], size[1], size[2]}, fully_connected, out->GetBufferPointer());
   return out;
 }
 
@@ -510,6 +488,31 @@ std::vector<unsigned> watershed_from_markers(const Landscape& land, const std::u
 }
 
 }  // namespace
+
+void fill_holes(const std::uint8_t* m, const Dims3& d, bool fully_connected, std::uint8_t* out) {
+  const std::size_t n = d[0] * d[1] * d[2];
+  std::vector<std::uint8_t> bg(n);
+  for (std::size_t i = 0; i < n; ++i) bg[i] = !m[i];
+  std::vector<std::uint32_t> lab(n);
+  const std::size_t n_background = label_components(bg.data(), d, fully_connected, 0, lab.data()).count;
+  std::vector<std::uint8_t> open(n_background + 1, 0);  // reaches a face
+  for (std::size_t k = 0; k < d[2]; ++k)
+    for (std::size_t j = 0; j < d[1]; ++j) {
+      const bool face = k == 0 || j == 0 || k + 1 == d[2] || j + 1 == d[1];
+      const std::size_t row = d[0] * (j + d[1] * k);
+      if (face)
+        for (std::size_t i = 0; i < d[0]; ++i) open[lab[row + i]] = 1;
+      else
+        open[lab[row]] = open[lab[row + d[0] - 1]] = 1;
+    }
+  for (std::size_t i = 0; i < n; ++i) out[i] = m[i] || !open[lab[i]];
+}
+
+std::vector<unsigned> watershed(const std::vector<float>& level, const Geometry& g, float lo, float hi,
+                                const std::vector<std::uint8_t>& inside, const std::vector<unsigned>& markers) {
+  const Landscape land(level, g, lo, hi);
+  return watershed_from_markers(land, inside.data(), markers.data());
+}
 
 // What a grid's segmentation needs to know beyond its voxels.
 struct GridContext {
@@ -1020,172 +1023,245 @@ static std::vector<std::uint8_t> located_voxels(const GridContext& ctx, const Ge
   return in_located;
 }
 
+// Step 1 (calibration): the warning when the soft-tissue peak lies more than
+// 50 HU from kSoftTissueHu.
+static void warn_about_calibration(double offset, std::vector<std::string>& warnings) {
+  if (std::abs(offset) > 50)
+    warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(kSoftTissueHu + offset))) +
+                       " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
+                       " HU (calibration offset?)");
+}
+
+// What step 4 (identification) weighs the cores by: the placed atlas's
+// mandible probability at every bone voxel (empty without the atlas), and
+// the judge that picks the mandible's core.
+struct CoreEvidence {
+  std::vector<float> prior;
+  CoreJudge judge;
+};
+
+static CoreEvidence core_evidence(const GridContext& ctx, const std::uint8_t* bone, const Geometry& cg, double voxel_mm3,
+                                  double min_located) {
+  CoreEvidence e;
+  const bool by_atlas = ctx.atlas && ctx.atlas->found;
+  double atlas_mm3 = 0.0;
+  if (by_atlas) {
+    const atlas::MandiblePrior placed(atlas::shipped(), ctx.atlas->pose);
+    e.prior = prior_at_bone(placed, bone, cg);
+    atlas_mm3 = placed.mass_mm3();
+  }
+  e.judge = CoreJudge{by_atlas, voxel_mm3, atlas_mm3, min_located};
+  return e;
+}
+
+// Steps 3-4 (markers, identification): the mandible's core deepened until it
+// separates, in the dense-bone solid first, then in the whole bone mask.
+// bone_depth: the bone mask's depth map when it was computed here (reused for
+// the watershed landscape), else empty.
+struct MarkerSearch {
+  MarkerChoice choice;
+  std::vector<float> bone_depth;
+};
+
+static MarkerSearch markers_by_core_depth(const MaskImage::Pointer& dense_solid, const MaskImage::Pointer& bone, double rsep,
+                                          double r_max, float depth_cap, const Geometry& cg, const CoreEvidence& evidence,
+                                          const std::vector<std::uint8_t>& in_located, SegLap& lap) {
+  MarkerSearch out;
+  for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
+    std::vector<float> sd = depth_inside(solid->GetBufferPointer(), cg.size, cg.spacing, depth_cap);
+    lap("depth map");
+    out.choice = deepest_mandible_core(sd, name, rsep, r_max, cg, evidence.prior, in_located, evidence.judge, lap.on());
+    if (solid == bone) out.bone_depth = std::move(sd);
+    if (out.choice.mand) break;
+  }
+  return out;
+}
+
+static void print_cores(const MarkerChoice& choice, double voxel_mm3) {
+  const std::vector<Features>& feats = choice.feats;
+  for (unsigned l = 1; l <= choice.n; ++l)
+    std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f (z %.1f to %.1f)%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
+                 feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], feats[l].lo[2], feats[l].hi[2],
+                 l == choice.mand ? "  <- mandible" : "");
+}
+
+// No mandible core separated: without the atlas, the widest, lowest bone
+// component of the undivided mask (with a warning); with it, an error (the
+// atlas's zone is then taken, segment_by_atlas_and_image).
+static std::vector<std::uint8_t> unseparated_mandible(const MaskImage* bone, const Options& opt, double threshold, double voxel_mm3,
+                                                      const Geometry& cg, bool by_atlas, std::vector<std::string>& warnings) {
+  if (by_atlas) throw Error(ExitCode::NoMandible, "no mandible core separated by the image");
+  warnings.push_back("mandible not separated from the other bones: no bone core has a mandible's size; "
+                     "the result may include skull or spine");
+  std::size_t n_bones = 0;
+  const LabelImage::Pointer bones =
+      components(bone, false, static_cast<std::size_t>(opt.min_component_cm3 * 1000.0 / voxel_mm3), &n_bones);
+  const unsigned n2 = static_cast<unsigned>(n_bones);
+  if (n2 == 0)
+    throw Error(ExitCode::NoMandible, "no mandible found: no bone (no connected region above " +
+                                          std::to_string(static_cast<int>(threshold)) + " HU of at least " +
+                                          std::to_string(static_cast<int>(std::lround(opt.min_component_cm3))) + " cm3)");
+  auto f2 = component_features(bones.GetPointer(), n2, cg);
+  const auto* lab = bones->GetBufferPointer();
+  unsigned best = 0;
+  for (unsigned l = 1; l <= n2; ++l)
+    if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
+  if (best == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone is at least 40 mm wide left-right");
+  std::vector<std::uint8_t> crop_mask(cg.voxel_count(), 0);
+  for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
+  return crop_mask;
+}
+
+// Step 5, "a crown follows its root" (reclaim_by_roots): the partition's
+// sources are the mandible's core and the cores of regions too large to be
+// fragments (the fragment rule's limit). Returns the voxels moved.
+static std::size_t crowns_follow_roots(std::vector<unsigned>& wsl, const std::uint8_t* bone, const unsigned* markers,
+                                       const MarkerChoice& choice, const std::vector<float>& bone_depth, const Geometry& cg,
+                                       const FaceNeighbours& neighbours, const Options& opt, std::size_t max_fragment_voxels) {
+  const unsigned n_markers = choice.n, mand = choice.mand;
+  std::vector<std::size_t> region_size(n_markers + 1, 0);
+  for (std::size_t i = 0; i < cg.voxel_count(); ++i)
+    if (bone[i] && wsl[i] && wsl[i] <= n_markers) ++region_size[wsl[i]];
+  const std::size_t limit = fragment_limit(region_size[mand], max_fragment_voxels, opt.fragment_merge_fraction);
+  std::vector<bool> source(n_markers + 1, false);
+  for (unsigned l = 1; l <= n_markers; ++l) source[l] = l == mand || region_size[l] > limit;
+  return reclaim_by_roots(wsl, bone, markers, source, mand, bone_depth, cg, neighbours,
+                          static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
+}
+
+// Step 5, "fragments join the mandible" (mandible_fragments), on scans that
+// resolve them; else the mandible's own label only.
+static std::vector<bool> mandible_labels(const unsigned* w, const std::uint8_t* bone, const Geometry& cg, const MarkerChoice& choice,
+                                         const Options& opt, std::size_t max_fragment_voxels, const std::array<bool, 6>& cut,
+                                         bool fine_scan) {
+  if (fine_scan)
+    return mandible_fragments(w, bone, cg, choice.n, choice.mand, max_fragment_voxels, opt.fragment_merge_fraction, cut);
+  std::vector<bool> joined(choice.n + 1, false);
+  joined[choice.mand] = true;
+  return joined;
+}
+
+// The mandible's region (with its fragments) and its core (step 5, "band,
+// then thick parts"): what band_and_attached is given.
+struct MandibleRegion {
+  std::vector<std::uint8_t> region, core;
+};
+
+static MandibleRegion mandible_region(const unsigned* w, const std::uint8_t* bone, const unsigned* markers,
+                                      const std::vector<bool>& joined, std::size_t n) {
+  MandibleRegion out;
+  out.region.resize(n);
+  for (std::size_t i = 0; i < n; ++i) out.region[i] = bone[i] && w[i] != 0 && joined[w[i]];
+  out.core.resize(n);
+  for (std::size_t i = 0; i < n; ++i) out.core[i] = markers[i] != 0 && joined[markers[i]];
+  return out;
+}
+
+// Step 5 (reconstruction): the watershed from all markers
+// (separation_landscape, flood_regions), crowns by their roots, fragments,
+// then the band and the thick attached parts of the mandible's region.
+// Fills out.mand and out.other.
+static void reconstruct(Separated& out, const MaskImage* bone, const MaskImage* dense_solid, const MarkerChoice& choice,
+                        std::vector<float>& bone_depth, const std::vector<float>& hu_crop, double offset, float depth_cap,
+                        const std::array<bool, 6>& crop_cut, double max_spacing, const GridContext& ctx, const Options& opt,
+                        SegLap& lap) {
+  const Geometry& cg = out.cg;
+  const double voxel_mm3 = cg.voxel_volume_mm3();
+  const auto* b = bone->GetBufferPointer();
+  const auto* m = choice.markers->GetBufferPointer();
+  if (bone_depth.empty()) bone_depth = depth_inside(b, cg.size, cg.spacing, depth_cap);
+  const Landscape land = separation_landscape(b, bone_depth, hu_crop, offset, cg);
+  std::vector<unsigned> wsl =
+      flood_regions(land, b, out.info.marker_source == std::string("dense bone") ? dense_solid->GetBufferPointer() : nullptr, m);
+  lap("watershed");
+  // Crowns and fragments are looked for only where the scan resolves them:
+  // on scans coarser than the working grid (interpolated), fragments are
+  // skull-base pieces as often as teeth (OpenKBP pt_246: Dice 0.79 -> 0.77 with them joined).
+  const bool fine_scan = ctx.native_max_spacing <= opt.max_working_spacing_mm;
+  const auto max_fragment_voxels = static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3);
+  if (fine_scan && opt.crown_min_depth_mm > 0) {
+    const std::size_t moved = crowns_follow_roots(wsl, b, m, choice, bone_depth, cg, land.neighbours, opt, max_fragment_voxels);
+    if (lap.on()) std::fprintf(stderr, "  %zu voxels nearer the mandible's core joined it\n", moved);
+    lap("crowns by their roots");
+  }
+  const unsigned* w = wsl.data();
+  const std::vector<bool> joined = mandible_labels(w, b, cg, choice, opt, max_fragment_voxels, crop_cut, fine_scan);
+  lap("fragments");
+  const MandibleRegion rm = mandible_region(w, b, m, joined, cg.voxel_count());
+  // Two voxels of the coarser of the grid and the scan. Scans coarser than
+  // the working grid never resolved thin shells, and their band is already
+  // two scan voxels wide: band only. The thick parts reach at most
+  // Options::thick_reach_mm from the core (a crown's height).
+  const float band = static_cast<float>(choice.r_used + 2.0 * std::max(max_spacing, ctx.native_max_spacing));
+  const float reach = static_cast<float>(std::max<double>(band, opt.thick_reach_mm));
+  out.mand = band_and_attached(rm.region, rm.core, band, fine_scan ? reach : band, cg, lap);
+  out.other.assign(out.mand.size(), 0);
+  for (std::size_t i = 0; i < out.mand.size(); ++i) out.other[i] = b[i] && w[i] != 0 && !joined[w[i]];
+  lap("attached parts");
+  if (lap.on()) {
+    std::size_t n_region = 0, n_kept = 0;
+    for (std::size_t i = 0; i < out.mand.size(); ++i) n_region += rm.region[i], n_kept += out.mand[i];
+    std::fprintf(stderr, "  mandible region %.1f cm3 (watershed), %.1f cm3 kept (band and thick parts)\n",
+                 n_region * voxel_mm3 / 1000, n_kept * voxel_mm3 / 1000);
+  }
+}
+
+// Steps 1-5 of docs/segmentation.md on one grid.
 static Separated separate(const Volume& ct, const Options& opt, const GridContext& ctx) {
   Separated out;
   Result& r = out.info;
   SegLap lap;
   const Geometry& g = ct.geom;
-  const double native_max_spacing = ctx.native_max_spacing;
   r.method = "auto";
   std::size_t soft = 0;
   const double offset = std::isnan(ctx.offset_hu) ? estimate_offset(ct, &soft) : ctx.offset_hu;
-  if (std::abs(offset) > 50)
-    r.warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(kSoftTissueHu + offset))) +
-                         " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
-                         " HU (calibration offset?)");
+  warn_about_calibration(offset, r.warnings);
   const double threshold = opt.bone_threshold_hu + offset;
 
-  // Bone mask, cropped to its bounding box, cavities filled (work is done on the crop).
+  // Step 2: bone mask, cropped to its bounding box, cavities filled (work is done on the crop).
   BoneCrop crop_of_bone = bone_crop(ct, threshold, ctx);
-  MaskImage::Pointer bone = std::move(crop_of_bone.bone);
-  const MaskImage::RegionType region = crop_of_bone.region;
-  const Geometry cg = crop_of_bone.cg;
-  const std::array<bool, 6> crop_cut = crop_of_bone.cut;  // faces of the bone crop on cut faces of the grid
-  const unsigned scan_edge = crop_of_bone.scan_edge;     // faces of the bone crop on the scan's edge (cap_cut_faces)
+  const MaskImage::Pointer bone = std::move(crop_of_bone.bone);
+  out.region = crop_of_bone.region;
+  out.cg = crop_of_bone.cg;
+  const Geometry& cg = out.cg;
   lap("bone mask, crop, fill");
   const double max_spacing = std::max({g.spacing[0], g.spacing[1], g.spacing[2]});
   const double voxel_mm3 = g.voxel_volume_mm3();
-  const std::vector<float> hu_crop = crop_values(ct, region, cg);
+  const std::vector<float> hu_crop = crop_values(ct, out.region, cg);
 
+  // Steps 3-4: markers are cores (deeper than rsep) of a solid. Thin contacts
+  // (cusp contacts, bridged joint spaces, streak rays) have no core, so the
+  // cores separate. First the dense-bone solid (cortex and enamel, holes
+  // filled so the cancellous core counts): partial-volume valleys between
+  // teeth in occlusion and across a narrow joint space fall below its
+  // threshold. Then the whole bone mask.
   const double rsep = std::max(1.0, 0.75 * max_spacing);
-  // Markers: cores (deeper than rsep) of a solid. Thin contacts (cusp
-  // contacts, bridged joint spaces, streak rays) have no core, so the cores
-  // separate. First try the dense-bone solid (cortex and enamel, holes filled
-  // so the cancellous core counts): partial-volume valleys between teeth in
-  // occlusion and across a narrow joint space fall below its threshold. Then
-  // the whole bone mask.
-  // Depth inside a solid (mm), computed once per solid and thresholded at
-  // each tried core depth.
-  const Dims3 cdims = cg.size;
   const std::vector<std::uint8_t> in_located = located_voxels(ctx, cg);
   const double min_located = ctx.located ? 1.0 - opt.locate_outside_fraction : 0.0;
-  const bool by_atlas = ctx.atlas && ctx.atlas->found;
-  const std::optional<atlas::MandiblePrior> placed =
-      by_atlas ? std::optional<atlas::MandiblePrior>(std::in_place, atlas::shipped(), ctx.atlas->pose) : std::nullopt;
-  const std::vector<float> prior = by_atlas ? prior_at_bone(*placed, bone->GetBufferPointer(), cg) : std::vector<float>{};
+  const CoreEvidence evidence = core_evidence(ctx, bone->GetBufferPointer(), cg, voxel_mm3, min_located);
   lap("atlas prior");
-  const double atlas_mm3 = by_atlas ? placed->mass_mm3() : 0.0;
-  const CoreJudge judge{by_atlas, voxel_mm3, atlas_mm3, min_located};
-  const MaskImage::Pointer dense_solid = dense_solid_of(bone.GetPointer(), hu_crop, offset + opt.dense_threshold_hu, scan_edge, max_spacing, cg);
+  const MaskImage::Pointer dense_solid =
+      dense_solid_of(bone.GetPointer(), hu_crop, offset + opt.dense_threshold_hu, crop_of_bone.scan_edge, max_spacing, cg);
   lap("dense solid");
-  // Deepen the cores until the mandible's separates (teeth in occlusion touch
-  // over a patch a few mm wide); dense solid first, then the bone mask.
-  std::vector<float> bone_depth;  // reused for the watershed landscape
   const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
   // Depths matter up to the deepest core, the landscape's cap and the crown
   // step's depth: the transforms need look no deeper (exact up to it, deeper beyond).
   const float depth_cap = std::max({static_cast<float>(r_max), kLandscapeDepthMm, static_cast<float>(opt.crown_min_depth_mm)});
-  MarkerChoice choice;
-  for (const auto& [solid, name] : {std::make_pair(dense_solid, "dense bone"), std::make_pair(bone, "bone")}) {
-    std::vector<float> sd = depth_inside(solid->GetBufferPointer(), cdims, cg.spacing, depth_cap);
-    lap("depth map");
-    choice = deepest_mandible_core(sd, name, rsep, r_max, cg, prior, in_located, judge, lap.on());
-    if (solid == bone) bone_depth = std::move(sd);
-    if (choice.mand) break;
-  }
+  MarkerSearch search = markers_by_core_depth(dense_solid, bone, rsep, r_max, depth_cap, cg, evidence, in_located, lap);
+  const MarkerChoice& choice = search.choice;
   if (choice.mand) r.marker_source = choice.source;
-  const LabelImage::Pointer markers = choice.markers;
-  const unsigned n_markers = choice.n, mand = choice.mand;
-  const std::vector<Features>& feats = choice.feats;
-  const double r_used = choice.r_used;
   lap("cores");
-  if (lap.on())
-    for (unsigned l = 1; l <= n_markers; ++l)
-      std::fprintf(stderr, "core %u: %.1f cm3 w %.0f d %.0f h %.0f centroid z %.1f (z %.1f to %.1f)%s\n", l, feats[l].voxels * voxel_mm3 / 1000,
-                   feats[l].extent(0), feats[l].extent(1), feats[l].extent(2), feats[l].centroid()[2], feats[l].lo[2], feats[l].hi[2],
-                   l == mand ? "  <- mandible" : "");
+  if (lap.on()) print_cores(choice, voxel_mm3);
 
-  std::vector<std::uint8_t> crop_mask(cg.voxel_count(), 0);
-  if (mand == 0) {
-    // With the atlas, a mandible without a core of its own is the atlas's
-    // zone's to take (segment_by_atlas_and_image), not a bone component's.
-    if (by_atlas) throw Error(ExitCode::NoMandible, "no mandible core separated by the image");
-    r.warnings.push_back("mandible not separated from the other bones: no bone core has a mandible's size; "
-                         "the result may include skull or spine");
-    // Fall back to the widest, lowest bone component of the undivided mask.
-    std::size_t n_bones = 0;
-    const LabelImage::Pointer bones =
-        components(bone.GetPointer(), false, static_cast<std::size_t>(opt.min_component_cm3 * 1000.0 / voxel_mm3), &n_bones);
-    const unsigned n2 = static_cast<unsigned>(n_bones);
-    if (n2 == 0)
-      throw Error(ExitCode::NoMandible, "no mandible found: no bone (no connected region above " +
-                                            std::to_string(static_cast<int>(threshold)) + " HU of at least " +
-                                            std::to_string(static_cast<int>(std::lround(opt.min_component_cm3))) + " cm3)");
-    auto f2 = component_features(bones.GetPointer(), n2, cg);
-    const auto* lab = bones->GetBufferPointer();
-    unsigned best = 0;
-    for (unsigned l = 1; l <= n2; ++l)
-      if (f2[l].extent(0) >= 40.0 && (best == 0 || f2[l].centroid()[2] < f2[best].centroid()[2])) best = l;
-    if (best == 0) throw Error(ExitCode::NoMandible, "no mandible found: no bone is at least 40 mm wide left-right");
-    if (best)
-      for (std::size_t i = 0; i < crop_mask.size(); ++i) crop_mask[i] = lab[i] == best;
-  } else {
-    // Watershed from all markers (separation_landscape, flood_regions).
-    if (bone_depth.empty()) bone_depth = depth_inside(bone->GetBufferPointer(), cdims, cg.spacing, depth_cap);
-    const Landscape land = separation_landscape(bone->GetBufferPointer(), bone_depth, hu_crop, offset, cg);
-    std::vector<unsigned> wsl = flood_regions(land, bone->GetBufferPointer(), r.marker_source == std::string("dense bone") ? dense_solid->GetBufferPointer() : nullptr,
-                                                    markers->GetBufferPointer());
-    lap("watershed");
-    const unsigned* w = wsl.data();
-    const auto* b = bone->GetBufferPointer();
-    const auto* m = markers->GetBufferPointer();
-    // Crowns and fragments are looked for only where the scan resolves them:
-    // on scans coarser than the working grid (interpolated), fragments are
-    // skull-base pieces as often as teeth (OpenKBP pt_246: Dice 0.79 -> 0.77 with them joined).
-    const bool fine_scan = native_max_spacing <= opt.max_working_spacing_mm;
-    const auto max_fragment_voxels = static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3);
-    // A crown follows its root (reclaim_by_roots).
-    if (fine_scan && opt.crown_min_depth_mm > 0) {
-      // Regions too large to be fragments (the fragment rule's limit) and the mandible's own core.
-      std::vector<std::size_t> region_size(n_markers + 1, 0);
-      for (std::size_t i = 0; i < cg.voxel_count(); ++i)
-        if (b[i] && wsl[i] && wsl[i] <= n_markers) ++region_size[wsl[i]];
-      const std::size_t limit = fragment_limit(region_size[mand], max_fragment_voxels, opt.fragment_merge_fraction);
-      std::vector<bool> source(n_markers + 1, false);
-      for (unsigned l = 1; l <= n_markers; ++l) source[l] = l == mand || region_size[l] > limit;
-      const std::size_t moved = reclaim_by_roots(wsl, b, m, source, mand, bone_depth, cg, land.neighbours,
-                                                 static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
-      if (lap.on()) std::fprintf(stderr, "  %zu voxels nearer the mandible's core joined it\n", moved);
-      lap("crowns by their roots");
-    }
-    // Fragments of the mandible: a tooth crown or a thin process whose neck
-    // the core depth cut becomes a marker of its own and floods its own
-    // region. A small region (≤ Options::fragment_merge_cm3) that shares more
-    // boundary with the mandible's region than with any other region joins it.
-    const std::vector<bool> joined =
-        fine_scan ? mandible_fragments(w, b, cg, n_markers, mand, max_fragment_voxels, opt.fragment_merge_fraction, crop_cut)
-                  : [&] { std::vector<bool> j(n_markers + 1, false); j[mand] = true; return j; }();
-    auto in_mandible = [&](LabelImage::PixelType l) { return l != 0 && joined[l]; };
-    lap("fragments");
-    // The mandible's region (it holds its core), kept within a band around
-    // its core and by thick attached parts (band_and_attached).
-    std::vector<std::uint8_t> rm(cg.voxel_count());
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) rm[i] = b[i] && in_mandible(w[i]);
-    std::vector<std::uint8_t> core_m(cg.voxel_count());
-    for (std::size_t i = 0; i < cg.voxel_count(); ++i) core_m[i] = in_mandible(m[i]);
-    const float band = static_cast<float>(r_used + 2.0 * std::max(max_spacing, native_max_spacing));  // two voxels of the coarser of the grid and the scan
-    // Scans coarser than the working grid never resolved thin shells, and
-    // their band is already two scan voxels wide: band only. The thick parts
-    // reach at most Options::thick_reach_mm from the core (a crown's height).
-    const float reach = static_cast<float>(std::max<double>(band, opt.thick_reach_mm));
-    crop_mask = band_and_attached(rm, core_m, band, fine_scan ? reach : band, cg, lap);
-    out.other.assign(crop_mask.size(), 0);
-    for (std::size_t i = 0; i < crop_mask.size(); ++i) out.other[i] = b[i] && !in_mandible(w[i]) && w[i] != 0;
-    lap("attached parts");
-    if (lap.on()) {
-      std::size_t n_region = 0, n_kept = 0;
-      for (std::size_t i = 0; i < crop_mask.size(); ++i) n_region += rm[i], n_kept += crop_mask[i];
-      std::fprintf(stderr, "  mandible region %.1f cm3 (watershed), %.1f cm3 kept (band and thick parts)\n", n_region * voxel_mm3 / 1000, n_kept * voxel_mm3 / 1000);
-    }
-  }
-
-  out.region = region;
-  out.cg = cg;
-  out.mand = std::move(crop_mask);
-  out.separated = mand != 0;
+  if (choice.mand == 0)
+    out.mand = unseparated_mandible(bone.GetPointer(), opt, threshold, voxel_mm3, cg, evidence.judge.by_atlas, r.warnings);
+  else
+    reconstruct(out, bone.GetPointer(), dense_solid.GetPointer(), choice, search.bone_depth, hu_crop, offset, depth_cap,
+                crop_of_bone.cut, max_spacing, ctx, opt, lap);
+  out.separated = choice.mand != 0;
   r.threshold_hu = threshold;
   r.offset_hu = offset;
-  r.separation_radius_mm = mand ? r_used : 0.0;
+  r.separation_radius_mm = choice.mand ? choice.r_used : 0.0;
   return out;
 }
 
@@ -1356,7 +1432,7 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
 
 // Mean of each f[0] x f[1] x f[2] block of ct (trailing partial blocks
 // dropped), on a grid whose voxel I is centred on its block.
-static Volume bin_average(const Volume& ct, const std::array<unsigned, 3>& f) {
+Volume bin_average(const Volume& ct, const std::array<unsigned, 3>& f) {
   const Geometry& g = ct.geom;
   Volume coarse;
   coarse.geom = g;
@@ -1560,7 +1636,7 @@ static Result segment_located(const Volume& ct, const Options& opt, const GridCo
 
 // Trilinear interpolation of ct onto a grid with the same origin, direction
 // and extent and spacing min(native, max_spacing) per axis.
-static Volume interpolate_finer(const Volume& ct, double max_spacing) {
+Volume interpolate_finer(const Volume& ct, double max_spacing) {
   const Geometry& g = ct.geom;
   Volume o;
   o.geom = g;
@@ -1604,8 +1680,8 @@ static Volume interpolate_finer(const Volume& ct, double max_spacing) {
 }
 
 // A mask on a finer grid (same origin and direction) back onto grid g: a
-// voxel is set when at least half of the fine voxels in its footprint are.
-static Mask coarsen(const Mask& fine, const Geometry& g) {
+// voxel is set when more than half of the fine voxels in its footprint are.
+Mask coarsen(const Mask& fine, const Geometry& g) {
   Mask m;
   m.geom = g;
   m.data.assign(g.voxel_count(), 0);
@@ -1698,10 +1774,7 @@ static MaskImage::RegionType atlas_region(const Geometry& g, const atlas::Atlas&
 static double calibration_offset(const Volume& ct, std::vector<std::string>& warnings) {
   std::size_t soft = 0;
   const double offset = estimate_offset(ct, &soft);
-  if (std::abs(offset) > 50)
-    warnings.push_back("soft tissue peaks at " + std::to_string(static_cast<int>(std::lround(kSoftTissueHu + offset))) +
-                       " HU instead of ~40 HU: thresholds shifted by " + std::to_string(static_cast<int>(std::lround(offset))) +
-                       " HU (calibration offset?)");
+  warn_about_calibration(offset, warnings);
   return offset;
 }
 
@@ -1738,8 +1811,7 @@ static std::vector<std::uint8_t> zone_cut_by_watershed(const std::vector<std::ui
     level[i] = landscape_level(depth[i], hu[i], hu0);
     markers[i] = p[i] >= kZoneMarkerP ? 1u : p[i] < kAtlasSupportP ? 2u : 0u;
   }
-  const Landscape land(level, cg, -2.0f, 0.0f);
-  const std::vector<unsigned> label = watershed_from_markers(land, bone.data(), markers.data());
+  const std::vector<unsigned> label = watershed(level, cg, -2.0f, 0.0f, bone, markers);
   std::vector<std::uint8_t> out(zone.size(), 0);
   for (std::size_t i = 0; i < out.size(); ++i) out[i] = zone[i] && label[i] != 2;
   return out;
