@@ -447,6 +447,149 @@ double Anatomy::hu(const Vec3& p, double w) const {
   return v;
 }
 
+namespace {
+
+// Co, Cr: the most superior surface point of the bone f over the columns
+// within (rx, ry) of c. The centroid of the near-highest columns: flat tops
+// (the coronoid edge is flat across the plate) must not be decided by scan order.
+template <class F>
+Vec3 highest_point(const F& f, const Vec3& c, double rx, double ry) {
+  std::vector<Vec3> tops;
+  double zmax = -kFar;
+  for (double dx = -rx; dx <= rx + 1e-9; dx += 0.25)
+    for (double dy = -ry; dy <= ry + 1e-9; dy += 0.25) {
+      const double z = top_crossing(f, c[0] + dx, c[1] + dy, c[2] - 4.0, c[2] + 20.0);
+      tops.push_back({c[0] + dx, c[1] + dy, z});
+      zmax = std::max(zmax, z);
+    }
+  Vec3 acc{0, 0, 0};
+  int cnt = 0;
+  for (const Vec3& t : tops)
+    if (t[2] > zmax - 0.05) {
+      acc = acc + t;
+      ++cnt;
+    }
+  const Vec3 xy = (1.0 / cnt) * acc;
+  return Vec3{xy[0], xy[1], top_crossing(f, xy[0], xy[1], c[2] - 4.0, c[2] + 20.0)};
+}
+
+// A direction in the sagittal projection (y, z), unit.
+struct SagittalDir {
+  double ny = 0, nz = -1;
+};
+
+// A hull edge of the sagittal outline: its length and outward normal.
+struct HullEdge {
+  double len, ny, nz;
+};
+
+// Go, the tangents: the outline's hull edges (counter-clockwise in (y, z))
+// within 50 degrees of posterior / inferior, each facing the nearer of the
+// two (as the detector, docs/landmarks.md: with the gonial angle opened 8
+// degrees the lower posterior border faced 40 degrees below posterior, was in
+// both cones, and paired with the upper posterior border put gonion half-way
+// up the ramus); of the distinct pairs, the one with the largest total
+// length. Returns the bisector of the pair's outward normals.
+SagittalDir tangents_bisector(const std::vector<Vec3>& outline, const std::vector<std::size_t>& h) {
+  std::vector<HullEdge> post, inf;
+  const double cone = std::cos(50.0 * kPi / 180.0);
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    const Vec3 &a = outline[h[i]], &b = outline[h[(i + 1) % h.size()]];
+    const double dy = b[1] - a[1], dz = b[2] - a[2], len = std::hypot(dy, dz);
+    if (len < 1e-9) continue;
+    const HullEdge e{len, dz / len, -dy / len};  // outward normal of a counter-clockwise hull
+    if (e.ny > cone && e.ny >= -e.nz) post.push_back(e);  // +y: posterior
+    if (-e.nz > cone && -e.nz > e.ny) inf.push_back(e);
+  }
+  double best_len = -1;
+  SagittalDir n;
+  for (const HullEdge& pe : post)
+    for (const HullEdge& ie : inf)
+      if (-pe.nz < -ie.nz && pe.len + ie.len > best_len) {
+        best_len = pe.len + ie.len;
+        const double by = pe.ny + ie.ny, bz = pe.nz + ie.nz, bl = std::hypot(by, bz);
+        n.ny = by / bl, n.nz = bz / bl;
+      }
+  return n;
+}
+
+// Go, the extreme point: the bone's extreme point along the bisector near
+// the outline's corner c (the surface is rounded there, not a uniform offset
+// of the outline), sampled at 0.25 mm in (y, z) over a 24 mm window, 0.5 mm
+// across; then, across the plate, the middle of the bone at that (y, z), so
+// that left and right are mirror images whatever the sampling's direction.
+template <class F>
+Vec3 extreme_bone_point(const F& f, const Vec3& c, const SagittalDir& n) {
+  Vec3 best = c;
+  double best_score = -kFar;
+  for (double y = c[1] - 12.0; y <= c[1] + 12.0; y += 0.25)
+    for (double z = c[2] - 12.0; z <= c[2] + 12.0; z += 0.25) {
+      const double score = y * n.ny + z * n.nz;
+      if (score <= best_score) continue;
+      for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.5)
+        if (f(Vec3{x, y, z}) < 0) {
+          best = {x, y, z};
+          best_score = score;
+          break;
+        }
+    }
+  double x0 = kFar, x1 = -kFar;
+  for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.1)
+    if (f(Vec3{x, best[1], best[2]}) < 0) x0 = std::min(x0, x), x1 = std::max(x1, x);
+  best[0] = 0.5 * (x0 + x1);
+  return best;
+}
+
+// Go (METHOD.md §2, as docs/landmarks.md measures it): in the sagittal
+// projection (y, z) of this side's outline, the posterior ramus tangent and
+// the inferior border tangent are supporting lines of the outline
+// (tangents_bisector); gonion is where the bisector of their outward normals
+// meets the surface: the bone's extreme point along it. The tangents come
+// from the design outline (the ramus plate's polygon and the body's lower
+// border, in 3D); the extreme point from the bone itself, around the
+// outline's extreme point. Until 2026-12-02 the tangents were drawn in the
+// ramus plane through the outline's corner and two border points, and gonion
+// was that corner crossed along the bisector: 2.8 mm from where the
+// definition puts it on the rounded angle.
+template <class F>
+Vec3 gonion(const F& f, const std::vector<Vec3>& outline) {
+  std::vector<std::array<double, 2>> yz(outline.size());
+  for (std::size_t i = 0; i < outline.size(); ++i) yz[i] = {outline[i][1], outline[i][2]};
+  const std::vector<std::size_t> h = convex_hull_2d(yz);  // counter-clockwise in (y, z)
+  const SagittalDir n = tangents_bisector(outline, h);
+  std::size_t go = h.front();
+  for (std::size_t i : h)
+    if (outline[i][1] * n.ny + outline[i][2] * n.nz > outline[go][1] * n.ny + outline[go][2] * n.nz) go = i;
+  const Vec3 best = extreme_bone_point(f, outline[go], n);
+  const Vec3 n3{0.0, n.ny, n.nz};
+  return crossing(f, best + 2.0 * n3, best - 2.0 * n3);
+}
+
+// Me: the lowest point of the symphysis on its mid-sagittal line x.
+template <class F>
+Vec3 menton(const F& f, double x) {
+  Vec3 best{0, 0, kFar};
+  for (double y = -82; y <= -60; y += 0.1) {
+    const Vec3 q = crossing(f, Vec3{x, y, -100}, Vec3{x, y, -60});
+    if (f(Vec3{x, y, -60}) < 0 && q[2] < best[2]) best = q;
+  }
+  return best;
+}
+
+// Pog: the most anterior point of the chin, between Me and the alveolar region.
+template <class F>
+Vec3 pogonion(const F& f, double x, const Vec3& me) {
+  Vec3 pog{0, kFar, 0};
+  for (double z = me[2] + 1.0; z <= me[2] + 20.0; z += 0.1) {
+    if (f(Vec3{x, -70, z}) >= 0) continue;
+    const Vec3 q = crossing(f, Vec3{x, -100, z}, Vec3{x, -70, z});
+    if (q[1] < pog[1]) pog = q;
+  }
+  return pog;
+}
+
+}  // namespace
+
 LandmarkSet Anatomy::landmarks() const {
   LandmarkSet out;
   auto f = [this](const Vec3& q) { return mandible_bone(q); };
@@ -454,127 +597,21 @@ LandmarkSet Anatomy::landmarks() const {
     const SideModel& m = side_[si];
     const std::string suf = si == 0 ? "_L" : "_R";
     // Co, Cr: most superior surface point of the condylar head / coronoid process.
-    // Centroid of the near-highest columns: flat tops (the coronoid edge is
-    // flat across the plate) must not be decided by scan order.
-    auto highest = [&](const Vec3& c, double rx, double ry) {
-      std::vector<Vec3> tops;
-      double zmax = -kFar;
-      for (double dx = -rx; dx <= rx + 1e-9; dx += 0.25)
-        for (double dy = -ry; dy <= ry + 1e-9; dy += 0.25) {
-          const double z = top_crossing(f, c[0] + dx, c[1] + dy, c[2] - 4.0, c[2] + 20.0);
-          tops.push_back({c[0] + dx, c[1] + dy, z});
-          zmax = std::max(zmax, z);
-        }
-      Vec3 acc{0, 0, 0};
-      int cnt = 0;
-      for (const Vec3& t : tops)
-        if (t[2] > zmax - 0.05) {
-          acc = acc + t;
-          ++cnt;
-        }
-      const Vec3 xy = (1.0 / cnt) * acc;
-      return Vec3{xy[0], xy[1], top_crossing(f, xy[0], xy[1], c[2] - 4.0, c[2] + 20.0)};
-    };
-    out.set("Co" + suf, highest(m.head_center, 9.0, 7.0));
-    out.set("Cr" + suf, highest(m.to_h(m.coronoid_fu.x, m.coronoid_fu.y - 4.0, 0.0), 5.0, 7.0));
-    // Go (METHOD.md §2, as docs/landmarks.md measures it): in the sagittal
-    // projection (y, z) of this side, the posterior ramus tangent and the
-    // inferior border tangent are supporting lines of the outline (hull
-    // edges within 50 degrees of posterior / inferior: the distinct pair with
-    // the largest total length); gonion is where the bisector of their
-    // outward normals meets the surface: the bone's extreme point along it.
-    // The tangents come from the design outline (the ramus plate's polygon
-    // and the body's lower border, in 3D); the extreme point from the bone
-    // itself, around the outline's extreme point. Until 2026-12-02 the
-    // tangents were drawn in the ramus plane through the outline's corner
-    // and two border points, and gonion was that corner crossed along the
-    // bisector: 2.8 mm from where the definition puts it on the rounded angle.
+    out.set("Co" + suf, highest_point(f, m.head_center, 9.0, 7.0));
+    out.set("Cr" + suf, highest_point(f, m.to_h(m.coronoid_fu.x, m.coronoid_fu.y - 4.0, 0.0), 5.0, 7.0));
+    // Go: on the outline of the ramus plate and the body's lower border.
     std::vector<Vec3> outline;
     for (const auto& q : m.polygon) outline.push_back(m.to_h(q.x, q.y, 0.0));
-    {
-      const auto& arc = arch_[si];
-      const auto& tt = arch_t_[si];
-      for (std::size_t i = 0; i < arc.size(); ++i)
-        if (tt[i] >= 0.35) outline.push_back({arc[i].x, arc[i].y, z_lower(tt[i])});
-    }
-    std::vector<std::array<double, 2>> yz(outline.size());
-    for (std::size_t i = 0; i < outline.size(); ++i) yz[i] = {outline[i][1], outline[i][2]};
-    const std::vector<std::size_t> h = convex_hull_2d(yz);  // counter-clockwise in (y, z)
-    struct Edge {
-      double len, ny, nz;
-    };
-    std::vector<Edge> post, inf;
-    const double cone = std::cos(50.0 * kPi / 180.0);
-    for (std::size_t i = 0; i < h.size(); ++i) {
-      const Vec3 &a = outline[h[i]], &b = outline[h[(i + 1) % h.size()]];
-      const double dy = b[1] - a[1], dz = b[2] - a[2], len = std::hypot(dy, dz);
-      if (len < 1e-9) continue;
-      const Edge e{len, dz / len, -dy / len};  // outward normal of a counter-clockwise hull
-      // Each edge faces one way, the nearer of posterior and inferior (as the
-      // detector, docs/landmarks.md): with the gonial angle opened 8 degrees
-      // the lower posterior border faced 40 degrees below posterior, was in
-      // both cones, and paired with the upper posterior border put gonion
-      // half-way up the ramus.
-      if (e.ny > cone && e.ny >= -e.nz) post.push_back(e);  // +y: posterior
-      if (-e.nz > cone && -e.nz > e.ny) inf.push_back(e);
-    }
-    double best_len = -1, ny = 0, nz = -1;
-    for (const Edge& pe : post)
-      for (const Edge& ie : inf)
-        if (-pe.nz < -ie.nz && pe.len + ie.len > best_len) {
-          best_len = pe.len + ie.len;
-          const double by = pe.ny + ie.ny, bz = pe.nz + ie.nz, bl = std::hypot(by, bz);
-          ny = by / bl, nz = bz / bl;
-        }
-    std::size_t go = h.front();
-    for (std::size_t i : h)
-      if (outline[i][1] * ny + outline[i][2] * nz > outline[go][1] * ny + outline[go][2] * nz) go = i;
-    // The bone's extreme point along the bisector near that outline corner
-    // (the surface is rounded there, not a uniform offset of the outline):
-    // sampled at 0.25 mm in (y, z) over a 24 mm window, 0.5 mm across.
-    const Vec3 c = outline[go];
-    Vec3 best = c;
-    double best_score = -kFar;
-    for (double y = c[1] - 12.0; y <= c[1] + 12.0; y += 0.25)
-      for (double z = c[2] - 12.0; z <= c[2] + 12.0; z += 0.25) {
-        const double score = y * ny + z * nz;
-        if (score <= best_score) continue;
-        for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.5)
-          if (f(Vec3{x, y, z}) < 0) {
-            best = {x, y, z};
-            best_score = score;
-            break;
-          }
-      }
-    // Across the plate: the middle of the bone at that (y, z), so that left
-    // and right are mirror images whatever the sampling's direction.
-    {
-      double x0 = kFar, x1 = -kFar;
-      for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.1)
-        if (f(Vec3{x, best[1], best[2]}) < 0) x0 = std::min(x0, x), x1 = std::max(x1, x);
-      best[0] = 0.5 * (x0 + x1);
-    }
-    const Vec3 n3{0.0, ny, nz};
-    out.set("Go" + suf, crossing(f, best + 2.0 * n3, best - 2.0 * n3));
+    const auto& arc = arch_[si];
+    const auto& tt = arch_t_[si];
+    for (std::size_t i = 0; i < arc.size(); ++i)
+      if (tt[i] >= 0.35) outline.push_back({arc[i].x, arc[i].y, z_lower(tt[i])});
+    out.set("Go" + suf, gonion(f, outline));
   }
-  // Me: lowest point of the symphysis (on its mid-sagittal line).
-  {
-    Vec3 best{0, 0, kFar};
-    const double x = chin_center_[0];
-    for (double y = -82; y <= -60; y += 0.1) {
-      const Vec3 q = crossing(f, Vec3{x, y, -100}, Vec3{x, y, -60});
-      if (f(Vec3{x, y, -60}) < 0 && q[2] < best[2]) best = q;
-    }
-    out.set("Me", best);
-    // Pog: most anterior point of the chin, between Me and the alveolar region.
-    Vec3 pog{0, kFar, 0};
-    for (double z = best[2] + 1.0; z <= best[2] + 20.0; z += 0.1) {
-      if (f(Vec3{x, -70, z}) >= 0) continue;
-      const Vec3 q = crossing(f, Vec3{x, -100, z}, Vec3{x, -70, z});
-      if (q[1] < pog[1]) pog = q;
-    }
-    out.set("Pog", pog);
-  }
+  const double x = chin_center_[0];
+  const Vec3 me = menton(f, x);
+  out.set("Me", me);
+  out.set("Pog", pogonion(f, x, me));
   return out;
 }
 

@@ -156,8 +156,10 @@ PhantomParams random_anatomy(std::uint64_t anatomy_seed, PhantomParams base) {
   return p;
 }
 
-Phantom generate(const PhantomParams& params) {
-  const PhantomParams& P = params;
+namespace {
+
+// The parameters' documented ranges; throws std::invalid_argument naming the first one outside.
+void check_params(const PhantomParams& P) {
   for (int a = 0; a < 3; ++a) {
     check(P.spacing[a] >= 0.1 && P.spacing[a] <= 6.0, "spacing (0.1..6 mm)");
     check(P.fov_mm[a] >= 40 && P.fov_mm[a] <= 400, "fov_mm (40..400 mm)");
@@ -180,126 +182,165 @@ Phantom generate(const PhantomParams& params) {
   check(P.cancellous_hu >= 0 && P.cancellous_hu <= 900 && P.cancellous_hu < P.cortical_hu, "cancellous_hu (0..900, below cortical_hu)");
   check(P.crown_scale >= 0.7 && P.crown_scale <= 1.3, "crown_scale (0.7..1.3)");
   check(std::abs(P.yaw_deg) <= 45 && std::abs(P.pitch_deg) <= 45 && std::abs(P.roll_deg) <= 45, "pose (|angle| <= 45 deg)");
+}
 
-  const Anatomy anat(P);
-  const Mat3 R = rotation(P.yaw_deg, P.pitch_deg, P.roll_deg);
-  const double s = P.scale;
-  auto to_lps = [&](const Vec3& h) { return apply(R, s * (h - kPivot)) + P.shift_mm; };
-  auto to_head = [&](const Vec3& l) { return (1.0 / s) * apply_t(R, l - P.shift_mm) + kPivot; };
+// Pose (docs/phantom.md, "Pose and grid"): p_LPS = R s (p_H - pivot) + shift.
+struct Pose {
+  Mat3 R;
+  double scale;
+  Vec3 shift;
+  Vec3 to_lps(const Vec3& h) const { return apply(R, scale * (h - kPivot)) + shift; }
+  Vec3 to_head(const Vec3& l) const { return (1.0 / scale) * apply_t(R, l - shift) + kPivot; }
+};
 
-  Phantom out;
-  out.params = P;
-  Geometry& g = out.ct.geom;
+// The grid: axial (identity direction), centred on LPS 0, size = round(fov / spacing).
+Geometry phantom_grid(const PhantomParams& P) {
+  Geometry g;
   for (int a = 0; a < 3; ++a) {
     g.size[a] = static_cast<std::size_t>(std::lround(P.fov_mm[a] / P.spacing[a]));
     g.spacing[a] = P.spacing[a];
     g.origin[a] = -0.5 * (g.size[a] - 1) * P.spacing[a];  // grid centred on LPS 0
   }
-  const std::size_t n = g.voxel_count();
-  out.ct.hu.assign(n, -1000.0f);
-  out.mandible.geom = g;
-  out.mandible.data.assign(n, 0);
-  const double w = (P.spacing[0] + P.spacing[1] + P.spacing[2]) / 3.0 / s;  // a voxel in model mm
+  return g;
+}
 
+// Image formation, partial volume: the model's HU and the ground-truth
+// mandible at every voxel centre (w: a voxel in model mm).
+void rasterise(const Anatomy& anat, const Pose& pose, double w, Volume& ct, Mask& mandible) {
+  const Geometry& g = ct.geom;
   const long nz = static_cast<long>(g.size[2]);
 #pragma omp parallel for schedule(dynamic, 1)
   for (long k = 0; k < nz; ++k)
     for (std::size_t j = 0; j < g.size[1]; ++j)
       for (std::size_t i = 0; i < g.size[0]; ++i) {
-        const Vec3 h = to_head(g.index_to_lps(i, j, k));
+        const Vec3 h = pose.to_head(g.index_to_lps(i, j, k));
         const std::size_t idx = g.linear(i, j, k);
-        out.ct.hu[idx] = static_cast<float>(anat.hu(h, w));
-        out.mandible.data[idx] = anat.mandible(h) < 0 ? 1 : 0;
+        ct.hu[idx] = static_cast<float>(anat.hu(h, w));
+        mandible.data[idx] = anat.mandible(h) < 0 ? 1 : 0;
       }
+}
 
-  // Metal streaks: in every axial slice through a filling, alternating
-  // bright/dark rays around each filling and a dark band between two fillings
-  // (beam hardening / photon starvation), decaying with distance.
-  const auto& metal = anat.metal_centers();
-  if (!metal.empty()) {
-    std::vector<Vec3> mc;
-    for (const auto& m : metal) mc.push_back(to_lps(m));
-    std::mt19937_64 rng(P.seed * 7919 + 17);
-    std::vector<double> phase;
-    for (std::size_t m = 0; m < mc.size(); ++m) phase.push_back(static_cast<double>(rng() % 6283) / 1000.0);
-#pragma omp parallel for schedule(dynamic, 1)
-    for (long k = 0; k < nz; ++k)
-      for (std::size_t j = 0; j < g.size[1]; ++j)
-        for (std::size_t i = 0; i < g.size[0]; ++i) {
-          const Vec3 p = g.index_to_lps(i, j, k);
-          double add = 0;
-          for (std::size_t m = 0; m < mc.size(); ++m) {
-            const double dz = std::abs(p[2] - mc[m][2]);
-            if (dz > 3.0) continue;
-            const double fz = 1.0 - dz / 3.0;
-            const double dx = p[0] - mc[m][0], dy = p[1] - mc[m][1];
-            const double r = std::hypot(dx, dy);
-            if (r < 3.0) continue;
-            add += fz * 450.0 * std::exp(-r / 35.0) * std::cos(14.0 * std::atan2(dy, dx) + phase[m]);
-            for (std::size_t q = m + 1; q < mc.size(); ++q) {
-              // distance from p to the segment between the two fillings, in-plane
-              const double ex = mc[q][0] - mc[m][0], ey = mc[q][1] - mc[m][1];
-              const double t = std::clamp((dx * ex + dy * ey) / (ex * ex + ey * ey), 0.0, 1.0);
-              const double d = std::hypot(dx - t * ex, dy - t * ey);
-              add -= fz * 700.0 * std::exp(-0.5 * d * d / 9.0);
-            }
-          }
-          out.ct.hu[g.linear(i, j, k)] += static_cast<float>(add);
-        }
-  }
-
-  if (P.blur_mm > 0)
-    gaussian_blur(out.ct.hu, g, {P.blur_mm / P.spacing[0], P.blur_mm / P.spacing[1], P.blur_mm / P.spacing[2]});
-
-  if (P.noise_hu > 0) {
-#pragma omp parallel for schedule(static)
-    for (long k = 0; k < nz; ++k) {
-      Normal normal(P.seed * 1000003ULL + static_cast<std::uint64_t>(k));
-      const std::size_t base = g.linear(0, 0, k);
-      for (std::size_t q = 0; q < g.size[0] * g.size[1]; ++q)
-        out.ct.hu[base + q] += static_cast<float>(P.noise_hu * normal());
+// Metal streaks at LPS point p from fillings mc: alternating bright/dark rays
+// around each filling and a dark band between two fillings (beam hardening /
+// photon starvation), decaying with distance, in axial slices through them.
+double streaks_at(const Vec3& p, const std::vector<Vec3>& mc, const std::vector<double>& phase) {
+  double add = 0;
+  for (std::size_t m = 0; m < mc.size(); ++m) {
+    const double dz = std::abs(p[2] - mc[m][2]);
+    if (dz > 3.0) continue;
+    const double fz = 1.0 - dz / 3.0;
+    const double dx = p[0] - mc[m][0], dy = p[1] - mc[m][1];
+    const double r = std::hypot(dx, dy);
+    if (r < 3.0) continue;
+    add += fz * 450.0 * std::exp(-r / 35.0) * std::cos(14.0 * std::atan2(dy, dx) + phase[m]);
+    for (std::size_t q = m + 1; q < mc.size(); ++q) {
+      // distance from p to the segment between the two fillings, in-plane
+      const double ex = mc[q][0] - mc[m][0], ey = mc[q][1] - mc[m][1];
+      const double t = std::clamp((dx * ex + dy * ey) / (ex * ex + ey * ey), 0.0, 1.0);
+      const double d = std::hypot(dx - t * ex, dy - t * ey);
+      add -= fz * 700.0 * std::exp(-0.5 * d * d / 9.0);
     }
   }
+  return add;
+}
+
+// Image formation, metal: the streaks of the fillings at LPS points mc.
+void add_metal_streaks(Volume& ct, const std::vector<Vec3>& mc, std::uint64_t seed) {
+  const Geometry& g = ct.geom;
+  std::mt19937_64 rng(seed * 7919 + 17);
+  std::vector<double> phase;
+  for (std::size_t m = 0; m < mc.size(); ++m) phase.push_back(static_cast<double>(rng() % 6283) / 1000.0);
+  const long nz = static_cast<long>(g.size[2]);
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long k = 0; k < nz; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i)
+        ct.hu[g.linear(i, j, k)] += static_cast<float>(streaks_at(g.index_to_lps(i, j, k), mc, phase));
+}
+
+// Image formation, noise: Gaussian, Box-Muller over a Mersenne Twister
+// seeded per slice (independent of the thread count).
+void add_noise(Volume& ct, double noise_hu, std::uint64_t seed) {
+  const Geometry& g = ct.geom;
+  const long nz = static_cast<long>(g.size[2]);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < nz; ++k) {
+    Normal normal(seed * 1000003ULL + static_cast<std::uint64_t>(k));
+    const std::size_t base = g.linear(0, 0, k);
+    for (std::size_t q = 0; q < g.size[0] * g.size[1]; ++q) ct.hu[base + q] += static_cast<float>(noise_hu * normal());
+  }
+}
+
+// --mirror: the finished volume flipped through the grid's mid-sagittal
+// plane (the grid axis i runs along LPS x): voxels flip along i, L/R labels
+// swap, the plane and the asymmetry record follow.
+void mirror_phantom(Phantom& out) {
+  const Geometry& g = out.ct.geom;
+  const double xc = g.index_to_lps(0.5 * (g.size[0] - 1), 0, 0)[0];
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j) {
+      const std::size_t b = g.linear(0, j, k);
+      std::reverse(out.ct.hu.begin() + b, out.ct.hu.begin() + b + g.size[0]);
+      std::reverse(out.mandible.data.begin() + b, out.mandible.data.begin() + b + g.size[0]);
+    }
+  const auto refl = [xc](Vec3 p) {
+    p[0] = 2 * xc - p[0];
+    return p;
+  };
+  LandmarkSet m;
+  for (const auto& [name, p] : out.landmarks.points) m.set(mirror_label(name), refl(p));
+  out.landmarks = m;
+  out.plane.point = refl(out.plane.point);
+  out.plane.normal = {out.plane.normal[0], -out.plane.normal[1], -out.plane.normal[2]};
+  out.superior[0] = -out.superior[0];
+  std::swap(out.truth.side[0], out.truth.side[1]);
+  out.truth.chin_deviation_mm = -out.truth.chin_deviation_mm;
+}
+
+double landmark_distance(const LandmarkSet& lm, const char* a, const char* b) {
+  const Vec3 *pa = lm.find(a), *pb = lm.find(b);
+  return pa && pb ? distance(*pa, *pb) : 0.0;
+}
+
+}  // namespace
+
+Phantom generate(const PhantomParams& params) {
+  const PhantomParams& P = params;
+  check_params(P);
+  const Anatomy anat(P);
+  const Pose pose{rotation(P.yaw_deg, P.pitch_deg, P.roll_deg), P.scale, P.shift_mm};
+
+  Phantom out;
+  out.params = P;
+  out.ct.geom = phantom_grid(P);
+  const Geometry& g = out.ct.geom;
+  const std::size_t n = g.voxel_count();
+  out.ct.hu.assign(n, -1000.0f);
+  out.mandible.geom = g;
+  out.mandible.data.assign(n, 0);
+  const double w = (P.spacing[0] + P.spacing[1] + P.spacing[2]) / 3.0 / P.scale;  // a voxel in model mm
+  rasterise(anat, pose, w, out.ct, out.mandible);
+  if (!anat.metal_centers().empty()) {
+    std::vector<Vec3> mc;
+    for (const auto& m : anat.metal_centers()) mc.push_back(pose.to_lps(m));
+    add_metal_streaks(out.ct, mc, P.seed);
+  }
+  if (P.blur_mm > 0)
+    gaussian_blur(out.ct.hu, g, {P.blur_mm / P.spacing[0], P.blur_mm / P.spacing[1], P.blur_mm / P.spacing[2]});
+  if (P.noise_hu > 0) add_noise(out.ct, P.noise_hu, P.seed);
 
   // Ground truth in LPS.
-  for (const auto& [name, p] : anat.landmarks().points) out.landmarks.set(name, to_lps(p));
-  out.plane.point = to_lps(Vec3{0, 0, 0});
-  out.plane.normal = apply(R, Vec3{1, 0, 0});
-  out.superior = apply(R, Vec3{0, 0, 1});
+  for (const auto& [name, p] : anat.landmarks().points) out.landmarks.set(name, pose.to_lps(p));
+  out.plane.point = pose.to_lps(Vec3{0, 0, 0});
+  out.plane.normal = apply(pose.R, Vec3{1, 0, 0});
+  out.superior = apply(pose.R, Vec3{0, 0, 1});
   out.truth.side = P.side;
   out.truth.chin_deviation_mm = P.chin_deviation_mm;
-
-  if (P.mirror) {
-    // Mirror the finished volume through the grid's mid-sagittal plane (the
-    // grid axis i runs along LPS x): voxels flip along i, L/R labels swap.
-    const double xc = g.index_to_lps(0.5 * (g.size[0] - 1), 0, 0)[0];
-    for (std::size_t k = 0; k < g.size[2]; ++k)
-      for (std::size_t j = 0; j < g.size[1]; ++j) {
-        const std::size_t b = g.linear(0, j, k);
-        std::reverse(out.ct.hu.begin() + b, out.ct.hu.begin() + b + g.size[0]);
-        std::reverse(out.mandible.data.begin() + b, out.mandible.data.begin() + b + g.size[0]);
-      }
-    auto refl = [&](Vec3 p) {
-      p[0] = 2 * xc - p[0];
-      return p;
-    };
-    LandmarkSet m;
-    for (const auto& [name, p] : out.landmarks.points) m.set(mirror_label(name), refl(p));
-    out.landmarks = m;
-    out.plane.point = refl(out.plane.point);
-    out.plane.normal = {out.plane.normal[0], -out.plane.normal[1], -out.plane.normal[2]};
-    out.superior[0] = -out.superior[0];
-    std::swap(out.truth.side[0], out.truth.side[1]);
-    out.truth.chin_deviation_mm = -out.truth.chin_deviation_mm;
-  }
-  auto dist = [&](const char* a, const char* b) {
-    const Vec3 *pa = out.landmarks.find(a), *pb = out.landmarks.find(b);
-    return pa && pb ? distance(*pa, *pb) : 0.0;
-  };
-  out.truth.ramus_height_L = dist("Co_L", "Go_L");
-  out.truth.ramus_height_R = dist("Co_R", "Go_R");
-  out.truth.body_length_L = dist("Go_L", "Me");
-  out.truth.body_length_R = dist("Go_R", "Me");
+  if (P.mirror) mirror_phantom(out);
+  out.truth.ramus_height_L = landmark_distance(out.landmarks, "Co_L", "Go_L");
+  out.truth.ramus_height_R = landmark_distance(out.landmarks, "Co_R", "Go_R");
+  out.truth.body_length_L = landmark_distance(out.landmarks, "Go_L", "Me");
+  out.truth.body_length_R = landmark_distance(out.landmarks, "Go_R", "Me");
   return out;
 }
 
