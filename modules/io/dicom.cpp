@@ -183,14 +183,132 @@ bool walk_meta_group(ByteReader& r, std::uintmax_t pos, std::uintmax_t* end, std
 enum class Walk { Ok, TooLong, Unsure };  // TooLong: refuse the file (a length past its end, a misplaced delimiter)
 
 Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit,
-                   bool big = false) {
-  // Byte order of tags and lengths (explicit VR big endian, 1.2.840.10008.1.2.2).
-  const auto u16 = [big](const unsigned char* x) -> std::uint32_t { return big ? (x[0] << 8) | x[1] : le16(x); };
-  const auto u32 = [big](const unsigned char* x) -> std::uint32_t {
+                   bool big = false);
+
+// Byte order of tags and lengths: little endian, or big (explicit VR big
+// endian, 1.2.840.10008.1.2.2).
+struct ByteOrder {
+  bool big = false;
+  std::uint32_t u16(const unsigned char* x) const { return big ? (x[0] << 8) | x[1] : le16(x); }
+  std::uint32_t u32(const unsigned char* x) const {
     return big ? (static_cast<std::uint32_t>(x[0]) << 24) | (static_cast<std::uint32_t>(x[1]) << 16) |
                      (static_cast<std::uint32_t>(x[2]) << 8) | static_cast<std::uint32_t>(x[3])
                : le32(x);
-  };
+  }
+};
+
+// The top-level pixel data element's header (h: its first 8 bytes at pos),
+// walked over like any element (GDCM's full read goes on past it, so what
+// follows must be sound too): TooLong for the VRs GDCM asserts on.
+Walk check_pixel_data_header(ByteReader& r, std::uintmax_t pos, unsigned char* h, bool explicit_vr, const ByteOrder& o) {
+  const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
+  // An unknown VR here sends GDCM into a hack for one vendor's files
+  // that asserts unless the next two bytes are zero (found by fuzzing).
+  if (explicit_vr && !known_vr(vr) && (h[6] != 0 || h[7] != 0)) return Walk::TooLong;
+  // Encapsulated (undefined length) pixel data must be OB, OW or UN: GDCM asserts otherwise.
+  if (explicit_vr && long_vr(vr) && r.read(pos + 8, h + 8, 4) && o.u32(h + 8) == 0xFFFFFFFFu &&
+      !(vr[0] == 'O' && (vr[1] == 'B' || vr[1] == 'W')) && !(vr[0] == 'U' && vr[1] == 'N'))
+    return Walk::TooLong;
+  return Walk::Ok;
+}
+
+// An element's value length, the size of its header, and whether it is a sequence (explicit VR SQ).
+struct ElementLength {
+  std::uintmax_t len = 0, head = 0;
+  bool sq = false;
+};
+
+// The element header at pos (h: its first 8 bytes; the next 4 are read for a
+// long VR). False: refuse the file.
+bool read_element_length(ByteReader& r, std::uintmax_t pos, unsigned char* h, bool explicit_vr, const ByteOrder& o,
+                         ElementLength& e) {
+  if (!explicit_vr) {
+    e.len = o.u32(h + 4), e.head = 8;
+    return true;
+  }
+  const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
+  if (!known_vr(vr)) {
+    // Not a VR ("BS", "L\0", ...): GDCM's recovery reads the length as
+    // 16 or 32 bits depending on its code path, so no walk can vouch for
+    // what follows (found by fuzzing: 1.1-1.3 GB allocations). Refused.
+    return false;
+  } else if (long_vr(vr)) {
+    if (!r.read(pos + 8, h + 8, 4)) return false;
+    e.len = o.u32(h + 8), e.head = 12;
+  } else {
+    e.len = o.u16(h + 6), e.head = 8;
+  }
+  e.sq = vr[0] == 'S' && vr[1] == 'Q';
+  return true;
+}
+
+// An undefined-length value from pos: a sequence of items up to (FFFE,E0DD),
+// each item a data set walked at depth + 1 (inner_explicit: its VR
+// encoding), or, for encapsulated pixel data (fragments), a fragment of a
+// byte stream skipped over.
+Walk walk_undefined_length(ByteReader& r, std::uintmax_t& pos, bool inner_explicit, bool fragments, int depth,
+                           const ByteOrder& o) {
+  for (int k = 0; k < 100000; ++k) {
+    unsigned char it[8];
+    if (!r.read(pos, it, 8)) return Walk::TooLong;
+    // An item or delimiter tag in the other byte order: GDCM's workaround
+    // for such files then reads a length in either order (found by
+    // fuzzing: a 3.6 GB allocation from a 1 kB file). Refused.
+    if (o.u16(it) == 0xFEFF && (it[2] == 0xE0 || it[3] == 0xE0)) return Walk::TooLong;
+    // Anything else where an item or a delimiter belongs: the sequence is
+    // broken, and GDCM's recovery asserted on it (found by fuzzing).
+    if (o.u16(it) != 0xFFFE) return Walk::TooLong;
+    const std::uint32_t ie = o.u16(it + 2), il = o.u32(it + 4);
+    pos += 8;
+    if (ie == 0xE0DD) return Walk::Ok;  // sequence delimitation
+    if (ie != 0xE000) return Walk::Unsure;
+    if (fragments) {
+      if (il == 0xFFFFFFFFu) return Walk::Unsure;
+      if (pos + il > r.size) return Walk::TooLong;
+      pos += il;
+      continue;
+    }
+    if (il == 0xFFFFFFFFu) {
+      const Walk w = walk_data_set(r, pos, inner_explicit, depth + 1, true, r.size, o.big);
+      if (w != Walk::Ok) return w;
+    } else {
+      if (pos + il > r.size) return Walk::TooLong;
+      std::uintmax_t p = pos;
+      const Walk w = walk_data_set(r, p, inner_explicit, depth + 1, true, pos + il, o.big);
+      if (w != Walk::Ok) return w;
+      pos += il;
+    }
+    if (k == 99999) return Walk::Unsure;
+  }
+  return Walk::Ok;
+}
+
+// A defined-length sequence's value, from pos to end: its items must fit in it.
+Walk walk_sequence_items(ByteReader& r, std::uintmax_t& pos, std::uintmax_t end, bool explicit_vr, int depth,
+                         const ByteOrder& o) {
+  while (pos < end) {
+    unsigned char it[8];
+    if (!r.read(pos, it, 8)) return Walk::TooLong;
+    if (o.u16(it) != 0xFFFE || o.u16(it + 2) != 0xE000) return Walk::TooLong;  // as in walk_undefined_length
+    const std::uint32_t il = o.u32(it + 4);
+    pos += 8;
+    if (il == 0xFFFFFFFFu) {
+      const Walk w = walk_data_set(r, pos, explicit_vr, depth + 1, true, end, o.big);
+      if (w != Walk::Ok) return w;
+    } else {
+      if (pos + il > end) return Walk::TooLong;
+      std::uintmax_t p = pos;
+      const Walk w = walk_data_set(r, p, explicit_vr, depth + 1, true, pos + il, o.big);
+      if (w != Walk::Ok) return w;
+      pos += il;
+    }
+  }
+  return pos > end ? Walk::TooLong : Walk::Ok;
+}
+
+Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int depth, bool in_item, std::uintmax_t limit,
+                   bool big) {
+  const ByteOrder o{big};
   if (depth > 16) return Walk::Unsure;
   for (int n = 0; n < 1000000; ++n) {
     unsigned char h[12];
@@ -206,7 +324,7 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
       if (depth > 0) return Walk::TooLong;
       return limit - pos >= 4 ? Walk::TooLong : Walk::Ok;
     }
-    const std::uint32_t group = u16(h), element = u16(h + 2);
+    const std::uint32_t group = o.u16(h), element = o.u16(h + 2);
     // Group 0000 (network command elements) never belongs in a file; an
     // empty (0000,0000) without a VR sends GDCM into a re-read that asserts
     // (found by fuzzing).
@@ -220,108 +338,33 @@ Walk walk_data_set(ByteReader& r, std::uintmax_t& pos, bool explicit_vr, int dep
       // (found by fuzzing), so the file is refused here.
       return Walk::TooLong;
     }
-    if (depth == 0 && group == 0x7FE0 && element == 0x0010) {  // pixel data: walked over like any element
-      // (GDCM's full read goes on past it, so what follows must be sound too.)
-      const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
-      // An unknown VR here sends GDCM into a hack for one vendor's files
-      // that asserts unless the next two bytes are zero (found by fuzzing).
-      if (explicit_vr && !known_vr(vr) && (h[6] != 0 || h[7] != 0)) return Walk::TooLong;
-      // Encapsulated (undefined length) pixel data must be OB, OW or UN: GDCM asserts otherwise.
-      if (explicit_vr && long_vr(vr) && r.read(pos + 8, h + 8, 4) && u32(h + 8) == 0xFFFFFFFFu &&
-          !(vr[0] == 'O' && (vr[1] == 'B' || vr[1] == 'W')) && !(vr[0] == 'U' && vr[1] == 'N'))
-        return Walk::TooLong;
-    }
-    std::uintmax_t len, head;
-    bool sq = false;
-    if (explicit_vr) {
-      const char vr[2] = {static_cast<char>(h[4]), static_cast<char>(h[5])};
-      if (!known_vr(vr)) {
-        // Not a VR ("BS", "L\0", ...): GDCM's recovery reads the length as
-        // 16 or 32 bits depending on its code path, so no walk can vouch for
-        // what follows (found by fuzzing: 1.1-1.3 GB allocations). Refused.
-        return Walk::TooLong;
-      } else if (long_vr(vr)) {
-        if (!r.read(pos + 8, h + 8, 4)) return Walk::TooLong;
-        len = u32(h + 8), head = 12;
-      } else {
-        len = u16(h + 6), head = 8;
-      }
-      sq = vr[0] == 'S' && vr[1] == 'Q';
-    } else {
-      len = u32(h + 4), head = 8;
-    }
-    pos += head;
-    if (r.flat_only && (sq || len == 0xFFFFFFFFu)) return Walk::TooLong;
+    const bool pixel_data = group == 0x7FE0 && element == 0x0010;
+    if (depth == 0 && pixel_data && check_pixel_data_header(r, pos, h, explicit_vr, o) != Walk::Ok) return Walk::TooLong;
+    ElementLength e;
+    if (!read_element_length(r, pos, h, explicit_vr, o, e)) return Walk::TooLong;
+    pos += e.head;
+    if (r.flat_only && (e.sq || e.len == 0xFFFFFFFFu)) return Walk::TooLong;
     // Explicit VR: only a sequence or UN may have an undefined length here
     // (GDCM asserts on an undefined-length OB, say; found by fuzzing).
-    if (len == 0xFFFFFFFFu && explicit_vr && std::isupper(h[4]) && std::isupper(h[5]) && !sq && !(h[4] == 'U' && h[5] == 'N') &&
-        !(group == 0x7FE0 && element == 0x0010))  // encapsulated pixel data (OB/OW, checked above)
+    if (e.len == 0xFFFFFFFFu && explicit_vr && std::isupper(h[4]) && std::isupper(h[5]) && !e.sq &&
+        !(h[4] == 'U' && h[5] == 'N') && !pixel_data)  // encapsulated pixel data (OB/OW, checked above)
       return Walk::TooLong;
-    if (len == 0xFFFFFFFFu) {
-      // Undefined length: a sequence of items up to (FFFE,E0DD). (An
-      // undefined-length UN value is encoded as implicit VR.)
+    if (e.len == 0xFFFFFFFFu) {
+      // Undefined length. (An undefined-length UN value is encoded as
+      // implicit VR.) Encapsulated pixel data (e.g. a compressed icon image
+      // nested in a sequence): its items are fragments of a byte stream, not data sets.
       const bool inner_explicit = explicit_vr && !(h[4] == 'U' && h[5] == 'N');
-      // Encapsulated pixel data (e.g. a compressed icon image nested in a
-      // sequence): its items are fragments of a byte stream, not data sets.
-      const bool fragments = group == 0x7FE0 && element == 0x0010;
-      for (int k = 0; k < 100000; ++k) {
-        unsigned char it[8];
-        if (!r.read(pos, it, 8)) return Walk::TooLong;
-        // An item or delimiter tag in the other byte order: GDCM's workaround
-        // for such files then reads a length in either order (found by
-        // fuzzing: a 3.6 GB allocation from a 1 kB file). Refused.
-        if (u16(it) == 0xFEFF && (it[2] == 0xE0 || it[3] == 0xE0)) return Walk::TooLong;
-        // Anything else where an item or a delimiter belongs: the sequence is
-        // broken, and GDCM's recovery asserted on it (found by fuzzing).
-        if (u16(it) != 0xFFFE) return Walk::TooLong;
-        const std::uint32_t ie = u16(it + 2), il = u32(it + 4);
-        pos += 8;
-        if (ie == 0xE0DD) break;  // sequence delimitation
-        if (ie != 0xE000) return Walk::Unsure;
-        if (fragments) {
-          if (il == 0xFFFFFFFFu) return Walk::Unsure;
-          if (pos + il > r.size) return Walk::TooLong;
-          pos += il;
-          continue;
-        }
-        if (il == 0xFFFFFFFFu) {
-          const Walk w = walk_data_set(r, pos, inner_explicit, depth + 1, true, r.size, big);
-          if (w != Walk::Ok) return w;
-        } else {
-          if (pos + il > r.size) return Walk::TooLong;
-          std::uintmax_t p = pos;
-          const Walk w = walk_data_set(r, p, inner_explicit, depth + 1, true, pos + il, big);
-          if (w != Walk::Ok) return w;
-          pos += il;
-        }
-        if (k == 99999) return Walk::Unsure;
-      }
+      const Walk w = walk_undefined_length(r, pos, inner_explicit, pixel_data, depth, o);
+      if (w != Walk::Ok) return w;
       continue;
     }
-    if (pos + len > r.size) return Walk::TooLong;
-    if (sq) {  // defined-length sequence: its items must fit in it
-      const std::uintmax_t end = pos + len;
-      while (pos < end) {
-        unsigned char it[8];
-        if (!r.read(pos, it, 8)) return Walk::TooLong;
-        if (u16(it) != 0xFFFE || u16(it + 2) != 0xE000) return Walk::TooLong;  // as above
-        const std::uint32_t il = u32(it + 4);
-        pos += 8;
-        if (il == 0xFFFFFFFFu) {
-          const Walk w = walk_data_set(r, pos, explicit_vr, depth + 1, true, end, big);
-          if (w != Walk::Ok) return w;
-        } else {
-          if (pos + il > end) return Walk::TooLong;
-          std::uintmax_t p = pos;
-          const Walk w = walk_data_set(r, p, explicit_vr, depth + 1, true, pos + il, big);
-          if (w != Walk::Ok) return w;
-          pos += il;
-        }
-      }
-      if (pos > end) return Walk::TooLong;
+    if (pos + e.len > r.size) return Walk::TooLong;
+    if (e.sq) {  // defined-length sequence
+      const Walk w = walk_sequence_items(r, pos, pos + e.len, explicit_vr, depth, o);
+      if (w != Walk::Ok) return w;
       continue;
     }
-    pos += len;
+    pos += e.len;
   }
   return Walk::Unsure;
 }
@@ -567,11 +610,12 @@ std::string iop_key(const Frame& f) {
 
 }  // namespace
 
-ScanResult scan(const std::string& path) {
-  quiet_gdcm();
-  const AbortGuard guard;
-  ScanResult res;
-  res.path = path;
+namespace {
+
+// Discovery: the files under path, searched recursively (a file path is
+// itself), sorted; entries that are neither regular files nor folders (a
+// FIFO blocks forever, a device never ends, a socket) are counted, never opened.
+std::vector<std::string> discover_files(const std::string& path, ScanResult& res) {
   std::vector<std::string> files;
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
@@ -580,7 +624,7 @@ ScanResult scan(const std::string& path) {
       std::error_code e2;
       if (it->is_regular_file(e2)) {
         files.push_back(it->path().string());
-      } else if (!it->is_directory(e2)) {  // FIFO (blocks forever), device (never ends), socket: never opened
+      } else if (!it->is_directory(e2)) {
         if (res.special_files++ == 0) res.first_special = it->path().string();
       }
     }
@@ -588,108 +632,130 @@ ScanResult scan(const std::string& path) {
     files.push_back(path);
   }
   std::sort(files.begin(), files.end());
-  res.files_seen = files.size();
+  return files;
+}
 
-  struct Key {
-    std::string uid, stack;
-    bool operator<(const Key& o) const { return std::tie(uid, stack) < std::tie(o.uid, o.stack); }
-  };
-  std::map<Key, Series> groups;
-  for (const auto& file : files) {
-    if (::access(file.c_str(), R_OK) != 0) {
-      ++res.unreadable_files;
-      if (res.first_unreadable.empty()) res.first_unreadable = file;
-      continue;
-    }
-    const auto size = fs::file_size(file, ec);
-    if (!ec && !structure_ok(file, size)) {
-      if (res.first_non_dicom.empty()) res.first_non_dicom = file;
-      continue;
-    }
-    AbortGuard::reading(file);
-    gdcm::Reader r;
-    r.SetFileName(file.c_str());
-    // Headers only: stop in front of the pixel data (the skip set keeps GDCM
-    // from loading it); the bytes left tell whether there is any.
-    static const std::set<gdcm::Tag> kSkipPixels{gdcm::Tag(0x7fe0, 0x0010)};
-    if (ec || size < 16 || !r.ReadUpToTag(gdcm::Tag(0x7fe0, 0x0010), kSkipPixels)) {
-      if (res.first_non_dicom.empty()) res.first_non_dicom = file;
-      continue;
-    }
-    const gdcm::DataSet& ds = r.GetFile().GetDataSet();
-    const std::string sop_class = str(ds, 0x0008, 0x0016);
-    const std::string modality = str(ds, 0x0008, 0x0060);
-    if (ds.IsEmpty() || (sop_class.empty() && modality.empty() && !ds.FindDataElement(gdcm::Tag(0x0028, 0x0010)))) {
-      if (res.first_non_dicom.empty()) res.first_non_dicom = file;
-      continue;
-    }
-    ++res.dicom_files;
-    unsigned rows = 0, cols = 0;
-    if (!u16(ds, 0x0028, 0x0010, rows) || !u16(ds, 0x0028, 0x0011, cols) || rows == 0 || cols == 0) {
-      ++res.non_image_files;
-      continue;
-    }
-    const std::size_t pos = r.GetStreamCurrentPosition();  // (size_t)-1 at end of file
-    const bool has_pixels = pos != static_cast<std::size_t>(-1) && pos + 8 <= size;
-    Frame base;
-    base.file = file;
-    base.rows = rows;
-    base.cols = cols;
-    base.instance = static_cast<int>(std::lround(numbers(str(ds, 0x0020, 0x0013)).empty() ? 0 : numbers(str(ds, 0x0020, 0x0013))[0]));
-    read_geometry(ds, base);
-    const auto nf = numbers(str(ds, 0x0028, 0x0008));
-    const unsigned n_frames = nf.size() == 1 && nf[0] >= 1 ? static_cast<unsigned>(nf[0]) : 1;
-    std::vector<Frame> frames;
-    if (n_frames > 1) {
-      // Enhanced multi-frame: shared groups, then per-frame groups.
-      Frame shared = base;
-      if (const auto* sfg = item(ds, 0x5200, 0x9229)) read_functional_groups(*sfg, shared);
-      for (unsigned k = 0; k < n_frames; ++k) {
-        Frame f = shared;
-        f.frame = k;
-        if (const auto* pfg = item(ds, 0x5200, 0x9230, k + 1)) read_functional_groups(*pfg, f);
-        else f.has_ipp = false;  // no per-frame position: cannot place the frame
-        frames.push_back(f);
-      }
-    } else {
-      frames.push_back(base);
-    }
-    const std::string uid = str(ds, 0x0020, 0x000e);
-    Series& s = groups[Key{uid.empty() ? "(no SeriesInstanceUID)" : uid, iop_key(frames.front())}];
-    if (s.frames.empty()) {
-      s.uid = uid;
-      s.study_uid = str(ds, 0x0020, 0x000d);
-      s.modality = modality;
-      s.description = str(ds, 0x0008, 0x103e);
-      s.image_type = str(ds, 0x0008, 0x0008);
-      s.study_date = str(ds, 0x0008, 0x0020);
-      s.manufacturer = str(ds, 0x0008, 0x0070);
-      s.model = str(ds, 0x0008, 0x1090);
-      s.kernel = str(ds, 0x0018, 0x1210);
-      s.photometric = str(ds, 0x0028, 0x0004);
-      s.sop_class = sop_class;
-      s.transfer_syntax = str(r.GetFile().GetHeader(), 0x0002, 0x0010);
-      u16(ds, 0x0028, 0x0100, s.bits_allocated);
-      if (!u16(ds, 0x0028, 0x0101, s.bits_stored)) s.bits_stored = s.bits_allocated;
-      u16(ds, 0x0028, 0x0103, s.pixel_representation);
-      u16(ds, 0x0028, 0x0002, s.samples_per_pixel);
-      unsigned pad = 0, lim = 0;
-      if (u16(ds, 0x0028, 0x0120, pad)) {
-        s.has_padding = true;
-        s.padding = s.pixel_representation ? static_cast<double>(static_cast<std::int16_t>(pad)) : pad;
-      }
-      if (u16(ds, 0x0028, 0x0121, lim)) {
-        s.has_padding_limit = true;
-        s.padding_limit = s.pixel_representation ? static_cast<double>(static_cast<std::int16_t>(lim)) : lim;
-      }
-    }
-    if (!has_pixels && !s.missing_pixel_data) {
-      s.missing_pixel_data = true;
-      s.missing_pixel_data_file = file;
-    }
-    s.files.insert(file);
-    for (auto& f : frames) s.frames.push_back(std::move(f));
+// Files are grouped by SeriesInstanceUID, then by sub-stack (orientation and matrix size, iop_key).
+struct SeriesKey {
+  std::string uid, stack;
+  bool operator<(const SeriesKey& o) const { return std::tie(uid, stack) < std::tie(o.uid, o.stack); }
+};
+
+// The frames of one image file: itself, or an enhanced multi-frame image's
+// frames placed from the shared, then the per-frame functional groups.
+std::vector<Frame> frames_of(const gdcm::DataSet& ds, const Frame& base) {
+  const auto nf = numbers(str(ds, 0x0028, 0x0008));
+  const unsigned n_frames = nf.size() == 1 && nf[0] >= 1 ? static_cast<unsigned>(nf[0]) : 1;
+  if (n_frames <= 1) return {base};
+  std::vector<Frame> frames;
+  Frame shared = base;
+  if (const auto* sfg = item(ds, 0x5200, 0x9229)) read_functional_groups(*sfg, shared);
+  for (unsigned k = 0; k < n_frames; ++k) {
+    Frame f = shared;
+    f.frame = k;
+    if (const auto* pfg = item(ds, 0x5200, 0x9230, k + 1)) read_functional_groups(*pfg, f);
+    else f.has_ipp = false;  // no per-frame position: cannot place the frame
+    frames.push_back(f);
   }
+  return frames;
+}
+
+// A series' attributes, from the header of its first file.
+void read_series_attributes(Series& s, const gdcm::File& file, const std::string& uid, const std::string& sop_class,
+                            const std::string& modality) {
+  const gdcm::DataSet& ds = file.GetDataSet();
+  s.uid = uid;
+  s.study_uid = str(ds, 0x0020, 0x000d);
+  s.modality = modality;
+  s.description = str(ds, 0x0008, 0x103e);
+  s.image_type = str(ds, 0x0008, 0x0008);
+  s.study_date = str(ds, 0x0008, 0x0020);
+  s.manufacturer = str(ds, 0x0008, 0x0070);
+  s.model = str(ds, 0x0008, 0x1090);
+  s.kernel = str(ds, 0x0018, 0x1210);
+  s.photometric = str(ds, 0x0028, 0x0004);
+  s.sop_class = sop_class;
+  s.transfer_syntax = str(file.GetHeader(), 0x0002, 0x0010);
+  u16(ds, 0x0028, 0x0100, s.bits_allocated);
+  if (!u16(ds, 0x0028, 0x0101, s.bits_stored)) s.bits_stored = s.bits_allocated;
+  u16(ds, 0x0028, 0x0103, s.pixel_representation);
+  u16(ds, 0x0028, 0x0002, s.samples_per_pixel);
+  unsigned pad = 0, lim = 0;
+  if (u16(ds, 0x0028, 0x0120, pad)) {
+    s.has_padding = true;
+    s.padding = s.pixel_representation ? static_cast<double>(static_cast<std::int16_t>(pad)) : pad;
+  }
+  if (u16(ds, 0x0028, 0x0121, lim)) {
+    s.has_padding_limit = true;
+    s.padding_limit = s.pixel_representation ? static_cast<double>(static_cast<std::int16_t>(lim)) : lim;
+  }
+}
+
+void note_non_dicom(ScanResult& res, const std::string& file) {
+  if (res.first_non_dicom.empty()) res.first_non_dicom = file;
+}
+
+// One file's header, read with GDCM up to the pixel data (not loading it),
+// and its frames added to its series. Files that cannot be read, are not
+// DICOM or hold no image are counted in res.
+void add_file(const std::string& file, ScanResult& res, std::map<SeriesKey, Series>& groups) {
+  if (::access(file.c_str(), R_OK) != 0) {
+    ++res.unreadable_files;
+    if (res.first_unreadable.empty()) res.first_unreadable = file;
+    return;
+  }
+  std::error_code ec;
+  const auto size = fs::file_size(file, ec);
+  if (!ec && !structure_ok(file, size)) return note_non_dicom(res, file);
+  AbortGuard::reading(file);
+  gdcm::Reader r;
+  r.SetFileName(file.c_str());
+  // Headers only: stop in front of the pixel data (the skip set keeps GDCM
+  // from loading it); the bytes left tell whether there is any.
+  static const std::set<gdcm::Tag> kSkipPixels{gdcm::Tag(0x7fe0, 0x0010)};
+  if (ec || size < 16 || !r.ReadUpToTag(gdcm::Tag(0x7fe0, 0x0010), kSkipPixels)) return note_non_dicom(res, file);
+  const gdcm::DataSet& ds = r.GetFile().GetDataSet();
+  const std::string sop_class = str(ds, 0x0008, 0x0016);
+  const std::string modality = str(ds, 0x0008, 0x0060);
+  if (ds.IsEmpty() || (sop_class.empty() && modality.empty() && !ds.FindDataElement(gdcm::Tag(0x0028, 0x0010))))
+    return note_non_dicom(res, file);
+  ++res.dicom_files;
+  unsigned rows = 0, cols = 0;
+  if (!u16(ds, 0x0028, 0x0010, rows) || !u16(ds, 0x0028, 0x0011, cols) || rows == 0 || cols == 0) {
+    ++res.non_image_files;
+    return;
+  }
+  const std::size_t pos = r.GetStreamCurrentPosition();  // (size_t)-1 at end of file
+  const bool has_pixels = pos != static_cast<std::size_t>(-1) && pos + 8 <= size;
+  Frame base;
+  base.file = file;
+  base.rows = rows;
+  base.cols = cols;
+  base.instance = static_cast<int>(std::lround(numbers(str(ds, 0x0020, 0x0013)).empty() ? 0 : numbers(str(ds, 0x0020, 0x0013))[0]));
+  read_geometry(ds, base);
+  std::vector<Frame> frames = frames_of(ds, base);
+  const std::string uid = str(ds, 0x0020, 0x000e);
+  Series& s = groups[SeriesKey{uid.empty() ? "(no SeriesInstanceUID)" : uid, iop_key(frames.front())}];
+  if (s.frames.empty()) read_series_attributes(s, r.GetFile(), uid, sop_class, modality);
+  if (!has_pixels && !s.missing_pixel_data) {
+    s.missing_pixel_data = true;
+    s.missing_pixel_data_file = file;
+  }
+  s.files.insert(file);
+  for (auto& f : frames) s.frames.push_back(std::move(f));
+}
+
+}  // namespace
+
+ScanResult scan(const std::string& path) {
+  quiet_gdcm();
+  const AbortGuard guard;
+  ScanResult res;
+  res.path = path;
+  const std::vector<std::string> files = discover_files(path, res);
+  res.files_seen = files.size();
+  std::map<SeriesKey, Series> groups;
+  for (const auto& file : files) add_file(file, res, groups);
   // Label sub-stacks of one UID as uid#1, uid#2, ...
   std::map<std::string, int> per_uid;
   for (const auto& [k, s] : groups) ++per_uid[k.uid];
@@ -1066,21 +1132,54 @@ bool safe_to_parse(const std::string& file) {
   return !ec && structure_ok(file, size);
 }
 
-Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings, std::uint64_t memory_budget) {
-  quiet_gdcm();
-  const AbortGuard guard;
-  AbortGuard::reading(s.frames.empty() ? std::string("series") : s.frames.front().file + " (or another file of its series)");
-  const Frame& f0 = s.frames[L.order.front()];
-  const unsigned rows = f0.rows, cols = f0.cols;
+namespace {
+
+// Values: a stored value equal to PixelPaddingValue (or within the range it
+// spans with Pixel Padding Range Limit) is padding.
+bool is_padding(const Series& s, double v) {
+  if (!s.has_padding) return false;
+  if (s.has_padding_limit) return v >= std::min(s.padding, s.padding_limit) && v <= std::max(s.padding, s.padding_limit);
+  return v == s.padding;
+}
+
+// Values of one frame (src: its stored values): HU = stored x RescaleSlope +
+// RescaleIntercept, per slice; padding becomes air, values below air are set
+// to air. Counts both.
+std::vector<float> frame_hu(const Series& s, const Frame& fr, const double* src, std::size_t plane, std::size_t& padded,
+                            std::size_t& clamped) {
+  std::vector<float> out(plane);
+  for (std::size_t p = 0; p < plane; ++p) {
+    const double v = src[p];
+    const bool pad = is_padding(s, v);
+    double h = pad ? kAir : v * fr.slope + fr.intercept;
+    if (pad) ++padded;
+    if (h < kAir) {
+      h = kAir;
+      ++clamped;
+    }
+    out[p] = static_cast<float>(h);
+  }
+  return out;
+}
+
+// The frames the layout uses (its order and its duplicates) in HU, by frame
+// index (other frames empty), decoded file by file in parallel; the padding
+// voxels counted. Throws the first decoding error, naming its file.
+struct DecodedFrames {
+  std::vector<std::vector<float>> hu;
+  std::size_t padded = 0;
+};
+
+DecodedFrames decode_frames(const Series& s, const Layout& L, unsigned rows, unsigned cols) {
   const std::size_t plane = static_cast<std::size_t>(rows) * cols;
-  // Which frames are needed, grouped by file.
-  std::map<std::string, std::vector<std::size_t>> by_file;
+  std::map<std::string, std::vector<std::size_t>> by_file;  // the frames needed, grouped by file
   std::vector<std::size_t> needed = L.order;
   for (const auto& g : L.duplicates) needed.insert(needed.end(), g.begin(), g.end());
   for (auto i : needed) by_file[s.frames[i].file].push_back(i);
   std::vector<std::string> file_list;
   for (const auto& [f, v] : by_file) file_list.push_back(f);
-  std::vector<std::vector<float>> hu(s.frames.size());
+  DecodedFrames out;
+  out.hu.resize(s.frames.size());
   std::size_t padded = 0, clamped = 0;
   std::string error;
   std::mutex mu;
@@ -1089,7 +1188,6 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
 #pragma omp parallel for schedule(dynamic, 4) reduction(+ : padded, clamped)
   for (long fi = 0; fi < static_cast<long>(file_list.size()); ++fi) {
     const std::string& file = file_list[static_cast<std::size_t>(fi)];
-    const auto& idxs = by_file.at(file);
     std::vector<double> stored;
     try {
       unsigned in_file = 0;  // frames of this file (multi-frame files decode as one buffer)
@@ -1101,33 +1199,22 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
       if (error.empty()) error = e.what();
       continue;
     }
-    for (auto i : idxs) {
+    for (auto i : by_file.at(file)) {
       const Frame& fr = s.frames[i];
-      std::vector<float> out(plane);
-      const double* src = stored.data() + static_cast<std::size_t>(fr.frame) * plane;
-      for (std::size_t p = 0; p < plane; ++p) {
-        const double v = src[p];
-        bool pad = false;
-        if (s.has_padding) {
-          if (s.has_padding_limit)
-            pad = v >= std::min(s.padding, s.padding_limit) && v <= std::max(s.padding, s.padding_limit);
-          else
-            pad = v == s.padding;
-        }
-        double h = pad ? kAir : v * fr.slope + fr.intercept;
-        if (pad) ++padded;
-        if (h < kAir) {
-          h = kAir;
-          ++clamped;
-        }
-        out[p] = static_cast<float>(h);
-      }
-      hu[i] = std::move(out);
+      out.hu[i] = frame_hu(s, fr, stored.data() + static_cast<std::size_t>(fr.frame) * plane, plane, padded, clamped);
     }
   }
   silence.reset();
   if (!error.empty()) throw Error(ExitCode::InputInvalid, error);
-  // Duplicates must be identical to the slice kept at their position.
+  (void)clamped;  // values below -1024 HU outside the reconstruction circle are routine
+  out.padded = padded;
+  return out;
+}
+
+// Duplicates: slices at a position already used must be identical to the
+// slice kept there (dropped); different images there are refused, naming both.
+// Returns the number dropped.
+std::size_t exact_duplicates(const Series& s, const Layout& L, const std::vector<std::vector<float>>& hu) {
   std::size_t dropped = 0;
   for (std::size_t k = 0; k < L.order.size(); ++k)
     for (auto dup : L.duplicates[k]) {
@@ -1136,27 +1223,31 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
                                                 s.frames[dup].file + " (interleaved acquisitions?)");
       ++dropped;
     }
-  if (dropped) warnings.push_back(std::to_string(dropped) + " exact duplicate slice(s) ignored");
-  if (padded) warnings.push_back(std::to_string(padded) + " padding voxels (PixelPaddingValue) set to air");
-  (void)clamped;  // values below -1024 HU outside the reconstruction circle are routine
-  if (lower(s.photometric) == "monochrome1")
-    warnings.push_back("MONOCHROME1 CT: the inverted display convention does not change HU and is ignored");
+  return dropped;
+}
 
-  Volume v;
+// Bilinear sample of one frame's HU (img) at LPS point p; air outside it.
+double sample_frame(const Frame& fr, const std::vector<float>& img, const Vec3& r, const Vec3& c, unsigned rows, unsigned cols,
+                    const Vec3& p) {
+  const Vec3 q = p - fr.ipp;
+  const double x = dot(q, r) / fr.spacing_i, y = dot(q, c) / fr.spacing_j;
+  if (x < 0 || y < 0 || x > cols - 1 || y > rows - 1) return kAir;
+  const std::size_t x0 = std::min<std::size_t>(static_cast<std::size_t>(x), cols - 2), y0 = std::min<std::size_t>(static_cast<std::size_t>(y), rows - 2);
+  const double ax = x - x0, ay = y - y0;
+  const double a = img[y0 * cols + x0], b = img[y0 * cols + x0 + 1], cc = img[(y0 + 1) * cols + x0], d = img[(y0 + 1) * cols + x0 + 1];
+  return (1 - ay) * ((1 - ax) * a + ax * b) + ay * ((1 - ax) * cc + ax * d);
+}
+
+// Tilt and gaps: the slices resampled onto the orthogonal grid (row, column,
+// normal) of v's spacing and direction that covers every frame's in-plane
+// footprint; linear between the bracketing frames, bilinear within each.
+// The grid is refused when a run on it would exceed the memory budget.
+void resample_frames(Volume& v, const Series& s, const Layout& L, const std::vector<std::vector<float>>& hu,
+                     std::uint64_t memory_budget) {
   Geometry& g = v.geom;
+  const Frame& f0 = s.frames[L.order.front()];
+  const unsigned rows = f0.rows, cols = f0.cols;
   const Vec3 r = f0.row_dir, c = f0.col_dir, n = L.normal;
-  g.spacing = {f0.spacing_i, f0.spacing_j, L.nominal_spacing};
-  g.direction = {r[0], c[0], n[0], r[1], c[1], n[1], r[2], c[2], n[2]};
-  if (!L.resample) {
-    g.size = {cols, rows, L.order.size()};
-    g.origin = f0.ipp;
-    v.hu.resize(g.voxel_count());
-    for (std::size_t k = 0; k < L.order.size(); ++k)
-      std::copy(hu[L.order[k]].begin(), hu[L.order[k]].end(), v.hu.begin() + k * plane);
-    return v;
-  }
-  // Resample onto the orthogonal grid (r, c, n): covers every frame's in-plane
-  // footprint; linear between the bracketing frames, bilinear within each.
   double lo_r = 1e30, hi_r = -1e30, lo_c = 1e30, hi_c = -1e30;
   std::vector<double> t;
   for (auto i : L.order) {
@@ -1176,17 +1267,6 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
                        static_cast<std::uint64_t>(std::min(1e19L, static_cast<long double>(g.size[0]) * g.size[1] * g.size[2])),
                        memory_budget);
   v.hu.assign(g.voxel_count(), static_cast<float>(kAir));
-  auto sample = [&](std::size_t frame, const Vec3& p) -> double {
-    const Frame& fr = s.frames[frame];
-    const Vec3 q = p - fr.ipp;
-    const double x = dot(q, r) / fr.spacing_i, y = dot(q, c) / fr.spacing_j;
-    if (x < 0 || y < 0 || x > cols - 1 || y > rows - 1) return kAir;
-    const std::size_t x0 = std::min<std::size_t>(static_cast<std::size_t>(x), cols - 2), y0 = std::min<std::size_t>(static_cast<std::size_t>(y), rows - 2);
-    const double ax = x - x0, ay = y - y0;
-    const auto& img = hu[frame];
-    const double a = img[y0 * cols + x0], b = img[y0 * cols + x0 + 1], cc = img[(y0 + 1) * cols + x0], d = img[(y0 + 1) * cols + x0 + 1];
-    return (1 - ay) * ((1 - ax) * a + ax * b) + ay * ((1 - ax) * cc + ax * d);
-  };
   const long nz = static_cast<long>(g.size[2]);
 #pragma omp parallel for schedule(static)
   for (long k = 0; k < nz; ++k) {
@@ -1195,13 +1275,47 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
     hi = std::min(std::max<std::size_t>(hi, 1), t.size() - 1);
     const std::size_t lo = hi - 1;
     const double w = std::clamp((tk - t[lo]) / (t[hi] - t[lo]), 0.0, 1.0);
+    const std::size_t flo = L.order[lo], fhi = L.order[hi];
     for (std::size_t j = 0; j < g.size[1]; ++j)
       for (std::size_t i = 0; i < g.size[0]; ++i) {
         const Vec3 p = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
-        const double a = sample(L.order[lo], p), b = sample(L.order[hi], p);
+        const double a = sample_frame(s.frames[flo], hu[flo], r, c, rows, cols, p);
+        const double b = sample_frame(s.frames[fhi], hu[fhi], r, c, rows, cols, p);
         v.hu[g.linear(i, j, static_cast<std::size_t>(k))] = static_cast<float>((1 - w) * a + w * b);
       }
   }
+}
+
+}  // namespace
+
+Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warnings, std::uint64_t memory_budget) {
+  quiet_gdcm();
+  const AbortGuard guard;
+  AbortGuard::reading(s.frames.empty() ? std::string("series") : s.frames.front().file + " (or another file of its series)");
+  const Frame& f0 = s.frames[L.order.front()];
+  const unsigned rows = f0.rows, cols = f0.cols;
+  const DecodedFrames decoded = decode_frames(s, L, rows, cols);
+  const std::size_t dropped = exact_duplicates(s, L, decoded.hu);
+  if (dropped) warnings.push_back(std::to_string(dropped) + " exact duplicate slice(s) ignored");
+  if (decoded.padded) warnings.push_back(std::to_string(decoded.padded) + " padding voxels (PixelPaddingValue) set to air");
+  if (lower(s.photometric) == "monochrome1")
+    warnings.push_back("MONOCHROME1 CT: the inverted display convention does not change HU and is ignored");
+
+  Volume v;
+  Geometry& g = v.geom;
+  const Vec3 r = f0.row_dir, c = f0.col_dir, n = L.normal;
+  g.spacing = {f0.spacing_i, f0.spacing_j, L.nominal_spacing};
+  g.direction = {r[0], c[0], n[0], r[1], c[1], n[1], r[2], c[2], n[2]};
+  if (L.resample) {
+    resample_frames(v, s, L, decoded.hu, memory_budget);
+    return v;
+  }
+  const std::size_t plane = static_cast<std::size_t>(rows) * cols;
+  g.size = {cols, rows, L.order.size()};
+  g.origin = f0.ipp;
+  v.hu.resize(g.voxel_count());
+  for (std::size_t k = 0; k < L.order.size(); ++k)
+    std::copy(decoded.hu[L.order[k]].begin(), decoded.hu[L.order[k]].end(), v.hu.begin() + k * plane);
   return v;
 }
 

@@ -854,32 +854,126 @@ LabelMap read_label_map(const std::string& path) {
   return m;
 }
 
-std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, const std::string& dir) {
-  register_factories();
-  using SliceImage = itk::Image<short, 2>;
-  using ShortImage = itk::Image<short, 3>;
-  const Geometry& g = ct.geom;
+namespace {
 
-  auto img = make_image<ShortImage>(g);
+using DicomSliceImage = itk::Image<short, 2>;
+using DicomShortImage = itk::Image<short, 3>;
+
+// The voxels as written: HU rounded to integers, clamped to [-1024, 30000].
+DicomShortImage::Pointer stored_image(const Volume& ct) {
+  auto img = make_image<DicomShortImage>(ct.geom);
   short* buf = img->GetBufferPointer();
   for (std::size_t i = 0; i < ct.hu.size(); ++i) {
     const float v = std::round(ct.hu[i]);
     buf[i] = static_cast<short>(std::clamp(v, -1024.0f, 30000.0f));
   }
+  return img;
+}
 
-  gdcm::UIDGenerator uidgen;
-  const std::string study_uid = spec.study_uid.empty() ? uidgen.Generate() : spec.study_uid;
-  const std::string series_uid = spec.series_uid.empty() ? uidgen.Generate() : spec.series_uid;
-  const std::string frame_uid = uidgen.Generate();
+std::string dicom_number(double v) {
+  std::ostringstream s;
+  s << std::setprecision(10) << v;
+  return s.str();
+}
 
-  auto num = [](double v) {
-    std::ostringstream s;
-    s << std::setprecision(10) << v;
-    return s.str();
-  };
+// ImageOrientationPatient: the row direction, then the column direction.
+std::string image_orientation(const Geometry& g) {
   std::string iop;
   for (int c = 0; c < 2; ++c)
-    for (int r = 0; r < 3; ++r) iop += (iop.empty() ? "" : "\\") + num(g.direction[3 * r + c]);
+    for (int r = 0; r < 3; ++r) iop += (iop.empty() ? "" : "\\") + dicom_number(g.direction[3 * r + c]);
+  return iop;
+}
+
+void set_tag(itk::MetaDataDictionary& d, const char* tag, const std::string& v) {
+  itk::EncapsulateMetaData<std::string>(d, tag, v);
+}
+
+// The UIDs every slice of the series shares.
+struct SeriesUids {
+  std::string study, series, frame_of_reference;
+};
+
+// The header of slice k: CT Image Storage with its study, patient and
+// equipment attributes from spec (Type 2 attributes a phantom has no value
+// for left empty).
+void set_slice_identity(itk::MetaDataDictionary& d, const DicomSeriesSpec& spec, const SeriesUids& uids,
+                        const std::string& sop_instance_uid, std::size_t k) {
+  set_tag(d, "0008|0016", "1.2.840.10008.5.1.4.1.1.2");  // CT Image Storage
+  set_tag(d, "0008|0018", sop_instance_uid);
+  set_tag(d, "0008|0060", "CT");
+  set_tag(d, "0008|0008", "DERIVED\\SECONDARY\\AXIAL");
+  set_tag(d, "0008|0020", spec.study_date);
+  set_tag(d, "0008|0021", spec.study_date);
+  set_tag(d, "0008|0022", spec.study_date);   // AcquisitionDate
+  set_tag(d, "0008|0023", spec.study_date);   // ContentDate
+  set_tag(d, "0008|0012", spec.study_date);   // InstanceCreationDate
+  for (const char* tag : {"0008|0030", "0008|0031", "0008|0032", "0008|0033", "0008|0013"}) set_tag(d, tag, spec.study_time);
+  set_tag(d, "0020|0012", "1");               // AcquisitionNumber
+  set_tag(d, "0020|0010", "1");               // StudyID
+  set_tag(d, "0018|5100", "HFS");             // PatientPosition (head first supine), Type 2C in CT
+  set_tag(d, "0020|0060", "");                // Laterality, Type 2C: the head is not a paired structure
+  set_tag(d, "0020|1040", "");                // PositionReferenceIndicator, Type 2: none for a phantom
+  set_tag(d, "0018|0060", "");                // KVP, Type 2: a phantom has no tube voltage
+  set_tag(d, "0008|0070", spec.manufacturer);
+  set_tag(d, "0008|1090", spec.model);
+  set_tag(d, "0008|1030", spec.study_description);
+  set_tag(d, "0008|103e", spec.series_description);
+  set_tag(d, "0010|0010", spec.patient_name);
+  set_tag(d, "0010|0020", spec.patient_id);
+  set_tag(d, "0010|0030", "");
+  set_tag(d, "0010|0040", "O");
+  set_tag(d, "0018|1210", spec.kernel);
+  set_tag(d, "0020|000d", uids.study);
+  set_tag(d, "0020|000e", uids.series);
+  set_tag(d, "0020|0052", uids.frame_of_reference);
+  set_tag(d, "0020|0011", "1");
+  set_tag(d, "0020|0013", std::to_string(k + 1));
+}
+
+// The image plane and pixel value attributes of slice k (iop: image_orientation).
+void set_slice_plane(itk::MetaDataDictionary& d, const Geometry& g, const std::string& iop, std::size_t k) {
+  set_tag(d, "0018|0050", dicom_number(g.spacing[2]));
+  set_tag(d, "0018|0088", dicom_number(g.spacing[2]));
+  const Vec3 p = g.index_to_lps(0, 0, static_cast<double>(k));
+  set_tag(d, "0020|0032", dicom_number(p[0]) + "\\" + dicom_number(p[1]) + "\\" + dicom_number(p[2]));
+  set_tag(d, "0020|0037", iop);
+  set_tag(d, "0020|1041", dicom_number(dot(p, Vec3{g.direction[2], g.direction[5], g.direction[8]})));
+  set_tag(d, "0028|0030", dicom_number(g.spacing[1]) + "\\" + dicom_number(g.spacing[0]));  // row spacing \ column spacing
+  set_tag(d, "0028|0004", "MONOCHROME2");
+  set_tag(d, "0028|1052", "-1024");
+  set_tag(d, "0028|1053", "1");
+  set_tag(d, "0028|1054", "HU");
+  set_tag(d, "0028|1050", "400");
+  set_tag(d, "0028|1051", "2000");
+}
+
+// GDCM's writer for the transfer syntax spec.compression names.
+itk::GDCMImageIO::Pointer dicom_image_io(const std::string& compression) {
+  auto gdcm_io = itk::GDCMImageIO::New();
+  gdcm_io->KeepOriginalUIDOn();
+  if (compression == "raw") return gdcm_io;
+  gdcm_io->UseCompressionOn();
+  if (compression == "jpeg-lossless")
+    gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG);
+  else if (compression == "jpeg2000")
+    gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG2000);
+  else
+    throw Error(ExitCode::Usage, "unknown DICOM compression '" + compression + "' (expected raw, jpeg-lossless or jpeg2000)");
+  return gdcm_io;
+}
+
+}  // namespace
+
+std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, const std::string& dir) {
+  register_factories();
+  const Geometry& g = ct.geom;
+  const DicomShortImage::Pointer img = stored_image(ct);
+  gdcm::UIDGenerator uidgen;
+  SeriesUids uids;
+  uids.study = spec.study_uid.empty() ? uidgen.Generate() : spec.study_uid;
+  uids.series = spec.series_uid.empty() ? uidgen.Generate() : spec.series_uid;
+  uids.frame_of_reference = uidgen.Generate();
+  const std::string iop = image_orientation(g);
 
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -889,70 +983,16 @@ std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, co
   std::vector<itk::MetaDataDictionary*> dict_ptrs;
   std::vector<std::string> files;
   for (std::size_t k = 0; k < g.size[2]; ++k) {
-    auto& d = dicts[k];
-    auto set = [&](const char* tag, const std::string& v) { itk::EncapsulateMetaData<std::string>(d, tag, v); };
-    set("0008|0016", "1.2.840.10008.5.1.4.1.1.2");  // CT Image Storage
-    set("0008|0018", uidgen.Generate());
-    set("0008|0060", "CT");
-    set("0008|0008", "DERIVED\\SECONDARY\\AXIAL");
-    set("0008|0020", spec.study_date);
-    set("0008|0021", spec.study_date);
-    set("0008|0022", spec.study_date);   // AcquisitionDate
-    set("0008|0023", spec.study_date);   // ContentDate
-    set("0008|0012", spec.study_date);   // InstanceCreationDate
-    for (const char* tag : {"0008|0030", "0008|0031", "0008|0032", "0008|0033", "0008|0013"}) set(tag, spec.study_time);
-    set("0020|0012", "1");               // AcquisitionNumber
-    set("0020|0010", "1");               // StudyID
-    set("0018|5100", "HFS");             // PatientPosition (head first supine), Type 2C in CT
-    set("0020|0060", "");                // Laterality, Type 2C: the head is not a paired structure
-    set("0020|1040", "");                // PositionReferenceIndicator, Type 2: none for a phantom
-    set("0018|0060", "");                // KVP, Type 2: a phantom has no tube voltage
-    set("0008|0070", spec.manufacturer);
-    set("0008|1090", spec.model);
-    set("0008|1030", spec.study_description);
-    set("0008|103e", spec.series_description);
-    set("0010|0010", spec.patient_name);
-    set("0010|0020", spec.patient_id);
-    set("0010|0030", "");
-    set("0010|0040", "O");
-    set("0018|0050", num(g.spacing[2]));
-    set("0018|0088", num(g.spacing[2]));
-    set("0018|1210", spec.kernel);
-    set("0020|000d", study_uid);
-    set("0020|000e", series_uid);
-    set("0020|0052", frame_uid);
-    set("0020|0011", "1");
-    set("0020|0013", std::to_string(k + 1));
-    const Vec3 p = g.index_to_lps(0, 0, static_cast<double>(k));
-    set("0020|0032", num(p[0]) + "\\" + num(p[1]) + "\\" + num(p[2]));
-    set("0020|0037", iop);
-    set("0020|1041", num(dot(p, Vec3{g.direction[2], g.direction[5], g.direction[8]})));
-    set("0028|0030", num(g.spacing[1]) + "\\" + num(g.spacing[0]));  // row spacing \ column spacing
-    set("0028|0004", "MONOCHROME2");
-    set("0028|1052", "-1024");
-    set("0028|1053", "1");
-    set("0028|1054", "HU");
-    set("0028|1050", "400");
-    set("0028|1051", "2000");
-    dict_ptrs.push_back(&d);
+    set_slice_identity(dicts[k], spec, uids, uidgen.Generate(), k);
+    set_slice_plane(dicts[k], g, iop, k);
+    dict_ptrs.push_back(&dicts[k]);
     std::ostringstream name;
     name << spec.file_prefix << std::setw(4) << std::setfill('0') << (k + 1) << ".dcm";
     files.push_back((fs::path(dir) / name.str()).string());
   }
 
-  auto gdcm_io = itk::GDCMImageIO::New();
-  gdcm_io->KeepOriginalUIDOn();
-  if (spec.compression != "raw") {
-    gdcm_io->UseCompressionOn();
-    if (spec.compression == "jpeg-lossless")
-      gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG);
-    else if (spec.compression == "jpeg2000")
-      gdcm_io->SetCompressionType(itk::GDCMImageIO::CompressionEnum::JPEG2000);
-    else
-      throw Error(ExitCode::Usage, "unknown DICOM compression '" + spec.compression +
-                                       "' (expected raw, jpeg-lossless or jpeg2000)");
-  }
-  auto writer = itk::ImageSeriesWriter<ShortImage, SliceImage>::New();
+  auto gdcm_io = dicom_image_io(spec.compression);
+  auto writer = itk::ImageSeriesWriter<DicomShortImage, DicomSliceImage>::New();
   writer->SetInput(img);
   writer->SetImageIO(gdcm_io);
   writer->SetFileNames(files);
@@ -963,7 +1003,7 @@ std::string write_dicom_series(const Volume& ct, const DicomSeriesSpec& spec, co
   } catch (const itk::ExceptionObject& e) {
     throw Error(ExitCode::OutputFailed, dir + ": cannot write DICOM series: " + first_line(e.GetDescription()));
   }
-  return series_uid;
+  return uids.series;
 }
 
 }  // namespace ms::io
