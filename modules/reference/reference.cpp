@@ -269,119 +269,138 @@ Plane refine_plane_on_surface(const Mesh& surface, const Plane& initial, const O
   return current_plane();
 }
 
-Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
-  // ---- initial plane from the pairs ----
-  Vec3 nsum{0, 0, 0};
-  int pairs = 0;
-  for (const char* p : kPairs) {
-    const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
-    if (l && r) {
-      nsum = nsum + (*l - *r);
-      ++pairs;
-    }
-  }
-  if (pairs == 0 || norm(nsum) < 1e-6)
-    throw Error(ExitCode::GeometryFailed, "symmetry plane: no bilateral landmark pair was found");
-  double n[3], d[1];
-  {
-    const Vec3 n0 = normalized(nsum);
-    double acc = 0;
-    int cnt = 0;
-    for (const char* p : kPairs) {
-      const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
-      if (l && r) acc += dot(n0, 0.5 * (*l + *r)), ++cnt;
-    }
-    for (const char* m : kMid)
-      if (const Vec3* q = det.find(m)) acc += dot(n0, *q), ++cnt;
-    for (int a = 0; a < 3; ++a) n[a] = n0[a];
-    d[0] = acc / cnt;
-  }
+namespace {
 
-  // ---- stage 1: landmarks vs symmetric configuration ----
-  std::vector<std::array<double, 3>> q_pair, q_mid;
-  std::vector<std::string> pair_names, mid_names;
-  for (const char* p : kPairs) {
-    const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
-    if (!l || !r) continue;
-    Plane pl{Vec3{0, 0, 0}, Vec3{n[0], n[1], n[2]}};
-    pl.point = d[0] * pl.normal;
-    const Vec3 init = 0.5 * (*l + pl.reflect(*r));
-    q_pair.push_back({init[0], init[1], init[2]});
-    pair_names.push_back(p);
-  }
-  for (const char* m : kMid)
-    if (const Vec3* q = det.find(m)) {
-      q_mid.push_back({(*q)[0], (*q)[1], (*q)[2]});
-      mid_names.push_back(m);
-    }
-  // Residuals between the detected landmarks and the symmetric configuration.
-  auto add_configuration = [&](ceres::Problem& pb) {
-    pb.AddParameterBlock(n, 3, new ceres::SphereManifold<3>());
-    pb.AddParameterBlock(d, 1);
-    for (std::size_t i = 0; i < q_pair.size(); ++i) {
-      const Vec3 *l = det.find(pair_names[i] + "_L"), *r = det.find(pair_names[i] + "_R");
-      pb.AddResidualBlock(new ceres::AutoDiffCostFunction<PairResidual, 6, 3, 1, 3>(new PairResidual{*l, *r}),
-                          new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_pair[i].data());
-    }
-    for (std::size_t i = 0; i < q_mid.size(); ++i)
-      pb.AddResidualBlock(new ceres::AutoDiffCostFunction<MidResidual, 3, 3, 1, 3>(new MidResidual{*det.find(mid_names[i])}),
-                          new ceres::HuberLoss(opt.landmark_huber_mm), n, d, q_mid[i].data());
-  };
-  ceres::Problem problem;
-  add_configuration(problem);
-  const ceres::Solver::Options so = solver_options(100);
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
-
-  Result res;
-  auto current_plane = [&] {
+// The plane's unknowns, as Ceres parameter blocks: the normal n (on
+// SphereManifold<3>) and the offset d of the plane n·x = d.
+struct PlaneUnknowns {
+  double n[3] = {0, 0, 1};
+  double d[1] = {0};
+  Plane plane() const {
     Plane pl;
     pl.normal = normalized(Vec3{n[0], n[1], n[2]});
     pl.point = d[0] * pl.normal;
     return pl;
-  };
-
-  // ---- stage 2: mirror-ICP on the surface ----
-  if (opt.refine_on_surface && surface && surface->faces.size() > 100) {
-    double rms = 0;
-    const Plane refined = refine_plane_on_surface(*surface, current_plane(), opt, &rms);
-    for (int a = 0; a < 3; ++a) n[a] = refined.normal[a];
-    d[0] = dot(refined.normal, refined.point);
-    res.surface_rms_mm = rms;
-    // Re-solve the symmetric configuration for the refined plane (plane fixed).
-    ceres::Problem cfg;
-    add_configuration(cfg);
-    cfg.SetParameterBlockConstant(n);
-    cfg.SetParameterBlockConstant(d);
-    ceres::Solve(so, &cfg, &summary);
   }
+};
 
-  res.plane = current_plane();
-  if (res.plane.normal[0] < 0) res.plane.normal = -1.0 * res.plane.normal;  // point to patient left
-  // Plane point: projection of the landmark centroid onto the plane.
-  {
-    Vec3 c{0, 0, 0};
-    int cnt = 0;
-    for (const auto& [name, p] : det.points) c = c + p, ++cnt;
-    c = (1.0 / cnt) * c;
-    const Plane pl = current_plane();
-    res.plane.point = c - pl.signed_distance(c) * pl.normal;
+// Initialisation: the normal along the mean left-right difference of the
+// bilateral pairs, through the mean of the pairs' midpoints and the midline
+// landmarks. *pairs: the number of bilateral pairs. Throws without one.
+PlaneUnknowns initial_plane(const LandmarkSet& det, int* pairs) {
+  Vec3 nsum{0, 0, 0};
+  *pairs = 0;
+  for (const char* p : kPairs) {
+    const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
+    if (l && r) {
+      nsum = nsum + (*l - *r);
+      ++*pairs;
+    }
   }
-  // Reference configuration and residuals.
-  const Plane pl = current_plane();
+  if (*pairs == 0 || norm(nsum) < 1e-6)
+    throw Error(ExitCode::GeometryFailed, "symmetry plane: no bilateral landmark pair was found");
+  const Vec3 n0 = normalized(nsum);
+  double acc = 0;
+  int cnt = 0;
+  for (const char* p : kPairs) {
+    const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
+    if (l && r) acc += dot(n0, 0.5 * (*l + *r)), ++cnt;
+  }
+  for (const char* m : kMid)
+    if (const Vec3* q = det.find(m)) acc += dot(n0, *q), ++cnt;
+  PlaneUnknowns u;
+  for (int a = 0; a < 3; ++a) u.n[a] = n0[a];
+  u.d[0] = acc / cnt;
+  return u;
+}
+
+// The symmetric configuration's unknowns: one free point q per bilateral
+// pair (its partner is the reflection of q), one point per midline landmark
+// (projected onto the plane); with the landmarks' names.
+struct SymmetricConfiguration {
+  std::vector<std::array<double, 3>> q_pair, q_mid;
+  std::vector<std::string> pair_names, mid_names;
+};
+
+// Starting values: each pair's left point averaged with its reflected right
+// point, each midline landmark as detected.
+SymmetricConfiguration initial_configuration(const LandmarkSet& det, const PlaneUnknowns& u) {
+  SymmetricConfiguration c;
+  for (const char* p : kPairs) {
+    const Vec3 *l = det.find(std::string(p) + "_L"), *r = det.find(std::string(p) + "_R");
+    if (!l || !r) continue;
+    Plane pl{Vec3{0, 0, 0}, Vec3{u.n[0], u.n[1], u.n[2]}};
+    pl.point = u.d[0] * pl.normal;
+    const Vec3 init = 0.5 * (*l + pl.reflect(*r));
+    c.q_pair.push_back({init[0], init[1], init[2]});
+    c.pair_names.push_back(p);
+  }
+  for (const char* m : kMid)
+    if (const Vec3* q = det.find(m)) {
+      c.q_mid.push_back({(*q)[0], (*q)[1], (*q)[2]});
+      c.mid_names.push_back(m);
+    }
+  return c;
+}
+
+// Residuals detected - reference (Huber) between the detected landmarks and
+// the symmetric configuration; the plane held fixed when plane_fixed.
+void solve_configuration(PlaneUnknowns& u, SymmetricConfiguration& c, const LandmarkSet& det, double huber_mm,
+                         bool plane_fixed) {
+  ceres::Problem pb;
+  pb.AddParameterBlock(u.n, 3, new ceres::SphereManifold<3>());
+  pb.AddParameterBlock(u.d, 1);
+  for (std::size_t i = 0; i < c.q_pair.size(); ++i) {
+    const Vec3 *l = det.find(c.pair_names[i] + "_L"), *r = det.find(c.pair_names[i] + "_R");
+    pb.AddResidualBlock(new ceres::AutoDiffCostFunction<PairResidual, 6, 3, 1, 3>(new PairResidual{*l, *r}),
+                        new ceres::HuberLoss(huber_mm), u.n, u.d, c.q_pair[i].data());
+  }
+  for (std::size_t i = 0; i < c.q_mid.size(); ++i)
+    pb.AddResidualBlock(new ceres::AutoDiffCostFunction<MidResidual, 3, 3, 1, 3>(new MidResidual{*det.find(c.mid_names[i])}),
+                        new ceres::HuberLoss(huber_mm), u.n, u.d, c.q_mid[i].data());
+  if (plane_fixed) {
+    pb.SetParameterBlockConstant(u.n);
+    pb.SetParameterBlockConstant(u.d);
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options(100), &pb, &summary);
+}
+
+// The reported plane: normal to the patient's left, through the projection
+// of the landmarks' centroid.
+Plane reported_plane(const Plane& fitted, const LandmarkSet& det) {
+  Plane out = fitted;
+  if (out.normal[0] < 0) out.normal = -1.0 * out.normal;  // point to patient left
+  Vec3 c{0, 0, 0};
+  int cnt = 0;
+  for (const auto& [name, p] : det.points) c = c + p, ++cnt;
+  c = (1.0 / cnt) * c;
+  out.point = c - fitted.signed_distance(c) * fitted.normal;
+  return out;
+}
+
+// The reference configuration: each pair's q and its reflection, each
+// midline point projected onto the plane.
+LandmarkSet reference_configuration(const SymmetricConfiguration& c, const Plane& pl) {
+  LandmarkSet out;
+  for (std::size_t i = 0; i < c.q_pair.size(); ++i) {
+    const Vec3 q{c.q_pair[i][0], c.q_pair[i][1], c.q_pair[i][2]};
+    out.set(c.pair_names[i] + "_L", q);
+    out.set(c.pair_names[i] + "_R", pl.reflect(q));
+  }
+  for (std::size_t i = 0; i < c.q_mid.size(); ++i) {
+    const Vec3 m{c.q_mid[i][0], c.q_mid[i][1], c.q_mid[i][2]};
+    out.set(c.mid_names[i], m - pl.signed_distance(m) * pl.normal);
+  }
+  return out;
+}
+
+// Asymmetry vectors (detected - reference) in the plane frame, and their RMS.
+void asymmetry_vectors(Result& res, const LandmarkSet& det, const Vec3& superior) {
+  Vec3 e_ml, e_ap, e_si;
+  plane_frame(res.plane, e_ml, e_ap, e_si, superior);
   double ss = 0;
   int cnt = 0;
-  for (std::size_t i = 0; i < q_pair.size(); ++i) {
-    const Vec3 q{q_pair[i][0], q_pair[i][1], q_pair[i][2]};
-    res.reference.set(pair_names[i] + "_L", q);
-    res.reference.set(pair_names[i] + "_R", pl.reflect(q));
-  }
-  for (std::size_t i = 0; i < q_mid.size(); ++i) {
-    const Vec3 m{q_mid[i][0], q_mid[i][1], q_mid[i][2]};
-    res.reference.set(mid_names[i], m - pl.signed_distance(m) * pl.normal);
-  }
-  Vec3 e_ml, e_ap, e_si;
-  plane_frame(res.plane, e_ml, e_ap, e_si, opt.superior);
   for (const auto& [name, ref] : res.reference.points) {
     const Vec3 dv = *det.find(name) - ref;
     ss += dot(dv, dv);
@@ -389,6 +408,31 @@ Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
     res.asymmetry_vectors[name] = {dot(dv, e_ml), dot(dv, e_ap), dot(dv, e_si)};
   }
   res.rms_landmark_residual_mm = cnt ? std::sqrt(ss / cnt) : 0.0;
+}
+
+}  // namespace
+
+Result fit(const LandmarkSet& det, const Mesh* surface, const Options& opt) {
+  int pairs = 0;
+  PlaneUnknowns u = initial_plane(det, &pairs);
+  // Stage 1: landmarks vs the symmetric configuration.
+  SymmetricConfiguration config = initial_configuration(det, u);
+  solve_configuration(u, config, det, opt.landmark_huber_mm, false);
+  Result res;
+  // Stage 2: mirror-ICP on the surface, then the configuration re-solved
+  // for the refined plane (plane fixed).
+  if (opt.refine_on_surface && surface && surface->faces.size() > 100) {
+    double rms = 0;
+    const Plane refined = refine_plane_on_surface(*surface, u.plane(), opt, &rms);
+    for (int a = 0; a < 3; ++a) u.n[a] = refined.normal[a];
+    u.d[0] = dot(refined.normal, refined.point);
+    res.surface_rms_mm = rms;
+    solve_configuration(u, config, det, opt.landmark_huber_mm, true);
+  }
+  const Plane pl = u.plane();
+  res.plane = reported_plane(pl, det);
+  res.reference = reference_configuration(config, pl);
+  asymmetry_vectors(res, det, opt.superior);
   if (pairs < 2) res.warnings.push_back("symmetry plane from a single bilateral landmark pair");
   return res;
 }
