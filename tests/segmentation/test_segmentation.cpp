@@ -12,6 +12,7 @@
 #include "phantom/phantom.h"
 #include "io/volume_io.h"
 #include "segmentation/segmentation.h"
+#include "segmentation/voxel_ops.h"
 #include "tests/support/openkbp.h"
 
 using namespace ms;
@@ -54,6 +55,185 @@ Mask sphere_on(const Geometry& g) {
 }
 
 }  // namespace
+
+// ---- Voxel operations on small hand-built grids (segmentation/voxel_ops.h) ----
+
+namespace {
+
+std::size_t at(const Dims3& d, std::size_t i, std::size_t j, std::size_t k) { return i + d[0] * (j + d[1] * k); }
+
+// A hollow cube: the shell of [1, 7]^3 on a 9^3 grid, its 5^3 interior empty.
+std::vector<std::uint8_t> hollow_cube(const Dims3& d) {
+  std::vector<std::uint8_t> m(d[0] * d[1] * d[2], 0);
+  for (std::size_t k = 1; k <= 7; ++k)
+    for (std::size_t j = 1; j <= 7; ++j)
+      for (std::size_t i = 1; i <= 7; ++i)
+        m[at(d, i, j, k)] = i == 1 || i == 7 || j == 1 || j == 7 || k == 1 || k == 7;
+  return m;
+}
+
+bool interior(std::size_t i, std::size_t j, std::size_t k) { return i >= 2 && i <= 6 && j >= 2 && j <= 6 && k >= 2 && k <= 6; }
+
+}  // namespace
+
+TEST(VoxelOps, FillHolesFillsAClosedShellAndNothingElse) {
+  const Dims3 d{9, 9, 9};
+  const std::vector<std::uint8_t> shell = hollow_cube(d);
+  for (const bool fully : {false, true}) {
+    std::vector<std::uint8_t> out(shell.size(), 7);
+    segmentation::fill_holes(shell.data(), d, fully, out.data());
+    for (std::size_t k = 0; k < d[2]; ++k)
+      for (std::size_t j = 0; j < d[1]; ++j)
+        for (std::size_t i = 0; i < d[0]; ++i) {
+          const std::size_t c = at(d, i, j, k);
+          ASSERT_EQ(out[c], shell[c] || interior(i, j, k) ? 1 : 0) << i << "," << j << "," << k << " fully " << fully;
+        }
+  }
+}
+
+TEST(VoxelOps, FillHolesLeavesAnOpenShellOpen) {
+  const Dims3 d{9, 9, 9};
+  std::vector<std::uint8_t> shell = hollow_cube(d);
+  shell[at(d, 4, 4, 7)] = 0;  // a hole in the top face
+  std::vector<std::uint8_t> out(shell.size(), 7);
+  segmentation::fill_holes(shell.data(), d, false, out.data());
+  EXPECT_EQ(out, shell);
+}
+
+TEST(VoxelOps, FillHolesCavityLeaksThroughAnEdgeOnlyWhenFullyConnected) {
+  // The cavity's corner voxel (2,2,2) touches the removed shell voxel
+  // (1,1,2) by an edge only; (1,1,2) is open to the outside by its faces.
+  const Dims3 d{9, 9, 9};
+  std::vector<std::uint8_t> shell = hollow_cube(d);
+  shell[at(d, 1, 1, 2)] = 0;
+  std::vector<std::uint8_t> face(shell.size()), full(shell.size());
+  segmentation::fill_holes(shell.data(), d, false, face.data());
+  segmentation::fill_holes(shell.data(), d, true, full.data());
+  EXPECT_EQ(face[at(d, 4, 4, 4)], 1);  // background face-connected: the cavity is closed
+  EXPECT_EQ(face[at(d, 2, 2, 2)], 1);
+  EXPECT_EQ(face[at(d, 1, 1, 2)], 0);  // the gap itself reaches the outside
+  EXPECT_EQ(full, shell);              // 26-connected background: the cavity is open
+}
+
+TEST(VoxelOps, WatershedSplitsTwoTouchingBlobsAtTheNeck) {
+  // Two 5^3 cubes (x 1-5 and x 9-13) joined by a one-voxel neck (x 6-8) at
+  // y = z = 3, plus an island (x 15) no marker reaches. Deep (level -1) in
+  // the cubes, shallow (0) in the neck: each cube floods from its own marker
+  // and the floods meet in the neck.
+  Geometry g;
+  g.size = {17, 7, 7};
+  const Dims3& d = g.size;
+  const std::size_t n = g.voxel_count();
+  std::vector<std::uint8_t> inside(n, 0);
+  std::vector<float> level(n, 0.0f);
+  auto in_cube = [](std::size_t i, std::size_t j, std::size_t k, std::size_t x0) {
+    return i >= x0 && i < x0 + 5 && j >= 1 && j <= 5 && k >= 1 && k <= 5;
+  };
+  for (std::size_t k = 0; k < d[2]; ++k)
+    for (std::size_t j = 0; j < d[1]; ++j)
+      for (std::size_t i = 0; i < d[0]; ++i) {
+        const std::size_t c = at(d, i, j, k);
+        const bool cube = in_cube(i, j, k, 1) || in_cube(i, j, k, 9);
+        inside[c] = cube || (i >= 6 && i <= 8 && j == 3 && k == 3) || (i == 15 && j == 3 && k == 3);
+        level[c] = cube ? -1.0f : 0.0f;
+      }
+  std::vector<unsigned> markers(n, 0);
+  markers[at(d, 3, 3, 3)] = 1;
+  markers[at(d, 11, 3, 3)] = 2;
+  const std::vector<unsigned> w = segmentation::watershed(level, g, -1.0f, 0.0f, inside, markers);
+  ASSERT_EQ(w.size(), n);
+  for (std::size_t k = 0; k < d[2]; ++k)
+    for (std::size_t j = 0; j < d[1]; ++j)
+      for (std::size_t i = 0; i < d[0]; ++i) {
+        const std::size_t c = at(d, i, j, k);
+        if (in_cube(i, j, k, 1)) EXPECT_EQ(w[c], 1u) << i << "," << j << "," << k;
+        else if (in_cube(i, j, k, 9)) EXPECT_EQ(w[c], 2u) << i << "," << j << "," << k;
+        else if (!inside[c] || i == 15) EXPECT_EQ(w[c], 0u) << i << "," << j << "," << k;
+      }
+  EXPECT_EQ(w[at(d, 6, 3, 3)], 1u);
+  EXPECT_EQ(w[at(d, 8, 3, 3)], 2u);
+  EXPECT_NE(w[at(d, 7, 3, 3)], 0u);  // the meeting point goes to one of them
+}
+
+TEST(VoxelOps, WatershedBoundaryFollowsTheLevelsNotTheDistance) {
+  // A row of 20 voxels, markers at both ends, flat but for one ridge voxel
+  // at 13: the right flood reaches the ridge first and the left one stops at
+  // it (on flat levels the floods would meet half-way, at 9-10).
+  Geometry g;
+  g.size = {20, 1, 1};
+  std::vector<float> level(20, 0.0f);
+  level[13] = 1.0f;
+  std::vector<unsigned> markers(20, 0);
+  markers[0] = 1;
+  markers[19] = 2;
+  const std::vector<std::uint8_t> inside(20, 1);
+  const std::vector<unsigned> w = segmentation::watershed(level, g, 0.0f, 1.0f, inside, markers);
+  for (std::size_t i = 0; i <= 12; ++i) EXPECT_EQ(w[i], 1u) << i;
+  for (std::size_t i = 13; i < 20; ++i) EXPECT_EQ(w[i], 2u) << i;
+  // On flat levels: the middle.
+  const std::vector<unsigned> flat = segmentation::watershed(std::vector<float>(20, 0.0f), g, 0.0f, 1.0f, inside, markers);
+  for (std::size_t i = 0; i < 10; ++i) EXPECT_EQ(flat[i], 1u) << i;
+  for (std::size_t i = 10; i < 20; ++i) EXPECT_EQ(flat[i], 2u) << i;
+}
+
+namespace {
+
+// hu = 3 x + 5 y + 7 z + 11 at each voxel's LPS position (mm).
+float ramp(const Vec3& p) { return static_cast<float>(3 * p[0] + 5 * p[1] + 7 * p[2] + 11); }
+
+Volume ramp_volume(const Geometry& g) {
+  Volume v;
+  v.geom = g;
+  v.hu.resize(g.voxel_count());
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) v.hu[g.linear(i, j, k)] = ramp(g.index_to_lps(i, j, k));
+  return v;
+}
+
+}  // namespace
+
+TEST(VoxelOps, BinAverageOfALinearRampIsTheRampAtEachBlocksCentre) {
+  // 7 x 4 x 6 voxels of 0.5 x 0.25 x 1 mm in 2 x 2 x 3 blocks: the last
+  // column (x 6) is an incomplete block and is dropped.
+  const Volume v = ramp_volume(grid({7, 4, 6}, {0.5, 0.25, 1.0}, {-2, 4, 8}));
+  const Volume c = segmentation::bin_average(v, {2, 2, 3});
+  ASSERT_EQ(c.geom.size, (std::array<std::size_t, 3>{3, 2, 2}));
+  EXPECT_EQ(c.geom.spacing, (Vec3{1.0, 0.5, 3.0}));
+  EXPECT_EQ(c.geom.origin, (Vec3{-1.75, 4.125, 9.0}));  // the first block's centre
+  for (std::size_t k = 0; k < 2; ++k)
+    for (std::size_t j = 0; j < 2; ++j)
+      for (std::size_t i = 0; i < 3; ++i) {
+        const Vec3 centre = v.geom.index_to_lps(2 * i + 0.5, 2 * j + 0.5, 3 * k + 1.0);
+        EXPECT_EQ(c.hu[c.geom.linear(i, j, k)], ramp(centre)) << i << "," << j << "," << k;
+        EXPECT_EQ(c.geom.index_to_lps(i, j, k), centre);
+      }
+}
+
+TEST(VoxelOps, InterpolateFinerOfALinearRampIsTheRampAtEachNewVoxel) {
+  // 4 mm slices onto 1 mm: 3 slices over 8 mm become 9; x and y (1 mm) are kept.
+  const Volume v = ramp_volume(grid({3, 2, 3}, {1.0, 0.5, 4.0}, {1, -2, -4}));
+  const Volume f = segmentation::interpolate_finer(v, 1.0);
+  ASSERT_EQ(f.geom.size, (std::array<std::size_t, 3>{3, 2, 9}));
+  EXPECT_EQ(f.geom.spacing, (Vec3{1.0, 0.5, 1.0}));
+  EXPECT_EQ(f.geom.origin, v.geom.origin);
+  for (std::size_t k = 0; k < 9; ++k)
+    for (std::size_t j = 0; j < 2; ++j)
+      for (std::size_t i = 0; i < 3; ++i)
+        EXPECT_EQ(f.hu[f.geom.linear(i, j, k)], ramp(f.geom.index_to_lps(i, j, k))) << i << "," << j << "," << k;
+}
+
+TEST(VoxelOps, CoarsenSetsAVoxelWhenMoreThanHalfOfItsFootprintIsSet) {
+  // 7 voxels of 1 mm back onto 3 of 3 mm (same origin): footprints {0, 1},
+  // {2, 3, 4}, {5, 6}. Exactly half is not a majority.
+  Mask fine;
+  fine.geom = grid({7, 1, 1}, {1, 1, 1}, {0, 0, 0});
+  fine.data = {1, 0, 1, 1, 0, 1, 1};
+  const Mask c = segmentation::coarsen(fine, grid({3, 1, 1}, {3, 1, 1}, {0, 0, 0}));
+  EXPECT_EQ(c.data, (std::vector<std::uint8_t>{0, 1, 1}));
+  fine.data = {1, 1, 0, 1, 0, 0, 1};
+  EXPECT_EQ(segmentation::coarsen(fine, grid({3, 1, 1}, {3, 1, 1}, {0, 0, 0})).data, (std::vector<std::uint8_t>{1, 0, 0}));
+}
 
 TEST(ExternalMask, SameGridIsTakenAsIs) {
   const Geometry ct = grid({48, 40, 36}, {0.8, 0.8, 1.0}, {-20, -16, -17});
