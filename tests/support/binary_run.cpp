@@ -151,7 +151,9 @@ Child start_binary(const std::vector<std::string>& args, const fs::path& scratch
   c.result.command = bin;
   for (const auto& a : args) c.result.command += " " + a;
   c.stderr_file = stderr_file_for(scratch);
-  c.guard_seconds = limits.guard_seconds;
+  // The guard finds hangs, it is no timing assertion: a sanitized build runs
+  // 2-3x slower (ASan/UBSan instrumentation), so it gets 3x the time.
+  c.guard_seconds = limits.guard_seconds * (std::getenv("MANDISYM_SANITIZED") ? kSanitizedSlowdown : 1);
   c.started = now_seconds();
   c.pid = ::fork();
   if (c.pid == 0) {

@@ -30,6 +30,8 @@ namespace ms::testing {
 // The corpus budget (issue "O. Hostile input": 2 GB and 60 s per case).
 constexpr long kCorpusMemoryBudgetKb = 2L * 1024 * 1024;
 constexpr int kCorpusSeconds = 60;
+// How much longer the hang guard waits under MANDISYM_SANITIZED=1.
+constexpr int kSanitizedSlowdown = 3;
 
 // MANDISYM_BINARY_UNDER_TEST when set, else the build's mandisym.
 const std::string& binary_under_test();
