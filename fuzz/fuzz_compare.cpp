@@ -7,7 +7,7 @@
 // A missing POST results.json is PRE's (the same run twice); a missing or
 // empty srd.json is absent (runs before 0.1 have none).
 //
-// Each run, as load_run: json::Value::parse (a parse error is compare's exit
+// Each run, as load_run: Json::parse (a parse error is compare's exit
 // 4), the top-level object check, compare_checks::read_landmarks and
 // read_plane, check_mesh, compare_checks::read_srd, and score_at over every
 // score path compare reads (the table's rows and each srd landmark's
@@ -32,7 +32,7 @@
 
 #include "asymmetry/srd.h"
 #include "core/error.h"
-#include "core/json.h"
+#include "core/json_text.h"
 #include "pipeline/compare_checks.h"
 #include "reference/reference.h"
 
@@ -100,7 +100,7 @@ const Mesh& post_mesh() {
 }
 
 struct Run {
-  ms::json::Value results;
+  ms::Json results;
   ms::LandmarkSet landmarks;
   ms::Plane plane;
   cc::SrdData srd;
@@ -133,7 +133,7 @@ Run load(const std::string& results_text, const std::string& srd_text, const std
   Run r;
   r.file = dir + "/results.json";
   try {
-    r.results = ms::json::Value::parse(results_text);
+    r.results = ms::parse_json(results_text);
   } catch (const std::exception& e) {  // as load_run: any parse failure is exit 4
     throw ms::Error(ms::ExitCode::InputInvalid, r.file + ": " + e.what());
   }
@@ -146,9 +146,9 @@ Run load(const std::string& results_text, const std::string& srd_text, const std
   cc::check_mesh(mesh, dir + "/mandible.vtp");
   if (!srd_text.empty()) {
     const std::string sf = dir + "/srd.json";
-    ms::json::Value j;
+    ms::Json j;
     try {
-      j = ms::json::Value::parse(srd_text);
+      j = ms::parse_json(srd_text);
     } catch (const std::exception& e) {
       throw ms::Error(ms::ExitCode::InputInvalid, sf + ": " + e.what());
     }
@@ -187,7 +187,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const Run post = load(part[1], part[3], "post", post_mesh());
     const cc::Consistency cons = cc::check_consistency({pre.results, pre_mesh(), pre.landmarks, pre.file},
                                                        {post.results, post_mesh(), post.landmarks, post.file});
-    (void)cons.block.dump(2);
+    (void)ms::dump_json(cons.block);
     if (verbose())
       for (const auto& w : cons.warnings) std::fprintf(stderr, "fuzz_compare: warning: %s\n", w.c_str());
     const auto al = ms::reference::align_rigid(post_mesh(), pre_mesh(), post.landmarks, pre.landmarks);

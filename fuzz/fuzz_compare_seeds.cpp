@@ -11,23 +11,25 @@
 #include <iterator>
 #include <string>
 
-#include "core/json.h"
+#include "core/json_text.h"
 
 namespace fs = std::filesystem;
-using ms::json::Value;
+using Value = ms::Json;
+using ms::json_numbers;
+using ms::parse_json;
 
 namespace {
 
 Value read(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
-  return Value::parse(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
+  return parse_json(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
 }
 
 // Only the members compare reads: input, landmarks, symmetry_plane, scores.
 Value lean_results(const Value& r) {
   Value o = Value::object();
   for (const char* k : {"input", "landmarks", "symmetry_plane", "scores"})
-    if (const Value* v = r.find(k)) o[k] = *v;
+    if (const ms::Json* v = ms::find_member(r, k)) o[k] = *v;
   return o;
 }
 
@@ -49,7 +51,7 @@ Value lean_srd(const Value& s, std::size_t n) {
 
 void write(const fs::path& out, const std::string& name, const Value& pre, const Value* post, const Value* pre_srd,
            const Value* post_srd) {
-  std::string bytes = pre.dump(0);
+  std::string bytes = ms::dump_json(pre, 0);
   if (post) bytes += std::string(1, '\0') + post->dump(0);
   if (pre_srd) bytes += std::string(1, '\0') + pre_srd->dump(0);
   if (post_srd) bytes += std::string(1, '\0') + post_srd->dump(0);
@@ -78,11 +80,14 @@ int main(int argc, char** argv) {
   v["input"]["path"] = "(removed)";
   write(out, "deidentified", lpre, &v, nullptr, nullptr);
   v = lpost;
-  for (const char* n : {"Co_L", "Cr_L", "Go_L"}) v["landmarks"][n][std::size_t{0}] = v["landmarks"][n][std::size_t{0}].as_number() + 12;
+  for (const char* n : {"Co_L", "Cr_L", "Go_L"}) v["landmarks"][n][std::size_t{0}] = v["landmarks"][n][std::size_t{0}].get<double>() + 12;
   write(out, "ramus_moved", lpre, &v, &spre, &spost);
   v = lpost;
   Value two = Value::object();
-  for (const char* n : {"Me", "Pog"}) two[n] = lpost.find("landmarks")->find(n) ? *lpost.find("landmarks")->find(n) : Value();
+  for (const char* n : {"Me", "Pog"}) {
+    const ms::Json* p = ms::find_member(lpost.at("landmarks"), n);
+    two[n] = p ? *p : Value();
+  }
   v["landmarks"] = two;
   write(out, "two_landmarks", lpre, &v, nullptr, nullptr);
   Value s = spost;

@@ -24,7 +24,7 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "core/json.h"
+#include "core/json_text.h"
 #include "pipeline/batch_support.h"
 #include "pipeline/commands.h"
 #include "reports/writers.h"
@@ -172,7 +172,7 @@ bool complete(const fs::path& dir) {
   std::stringstream s;
   s << f.rdbuf();
   try {
-    const json::Value v = json::Value::parse(s.str());
+    const Json v = parse_json(s.str());
     return v.contains("schema_version") && v.contains("scores");
   } catch (const std::exception&) {
     return false;

@@ -13,8 +13,8 @@ namespace ms::pipeline::compare_checks {
 
 namespace {
 
-using json::Value;
-using Type = json::Value::Type;
+using Value = Json;
+using Type = JsonKind;
 
 // Mandible volume ratio (larger / smaller enclosed volume) above which PRE and
 // POST are flagged as possibly not the same mandible. Two contours of one bone
@@ -34,12 +34,12 @@ constexpr double kMaxVolumeRatio = 1.25;
 constexpr double kMaxRamusRmsMm = 5.0;
 const char* const kRamusLandmarks[] = {"Co_L", "Co_R", "Cr_L", "Cr_R", "Go_L", "Go_R"};
 
-std::string type_word(Type t) { return std::string(t == Type::Array || t == Type::Object ? "an " : "a ") + json::type_name(t); }
+std::string type_word(Type t) { return std::string(t == Type::Array || t == Type::Object ? "an " : "a ") + json_kind_name(t); }
 
 bool deidentified(const Value& results) {
-  const Value* in = results.find("input");
-  const Value* p = in && in->is_object() ? in->find("path") : nullptr;
-  return !p || !p->is_string() || p->as_string() == "(removed)";
+  const Value* in = find_member(results, "input");
+  const Value* p = in && in->is_object() ? find_member(*in, "path") : nullptr;
+  return !p || !p->is_string() || p->get<std::string>() == "(removed)";
 }
 
 // input.KEY as a string ("" when absent or null); wrong types are refused.
@@ -47,7 +47,7 @@ std::string input_string(const Value& results, const char* key, const std::strin
   const Value* in = member(results, "input", Type::Object, file, "input");
   if (!in) return "";
   const Value* v = member(*in, key, Type::String, file, std::string("input.") + key);
-  return v ? v->as_string() : "";
+  return v ? v->get<std::string>() : "";
 }
 
 bool is_date(const std::string& s) {
@@ -146,17 +146,17 @@ void bad_field(const std::string& file, const std::string& field, const std::str
   throw Error(ExitCode::InputInvalid, file + ": field `" + field + "`: " + what);
 }
 
-const json::Value* member(const json::Value& obj, const std::string& key, json::Value::Type type, const std::string& file,
+const Json* member(const Json& obj, const std::string& key, JsonKind type, const std::string& file,
                           const std::string& field) {
-  const Value* v = obj.find(key);
+  const Value* v = find_member(obj, key);
   if (!v || v->is_null()) return nullptr;
-  if (v->type() != type) bad_field(file, field, "expected " + type_word(type) + ", found " + type_word(v->type()));
+  if (json_kind(*v) != type) bad_field(file, field, "expected " + type_word(type) + ", found " + type_word(json_kind(*v)));
   return v;
 }
 
-double coordinate(const json::Value& v, const std::string& file, const std::string& field) {
-  if (!v.is_number()) bad_field(file, field, "expected a number, found " + type_word(v.type()));
-  const double x = v.as_number();
+double coordinate(const Json& v, const std::string& file, const std::string& field) {
+  if (!v.is_number()) bad_field(file, field, "expected a number, found " + type_word(json_kind(v)));
+  const double x = v.get<double>();
   if (!std::isfinite(x) || std::abs(x) > kMaxCoordinateMm)
   {
     char b[64];
@@ -166,13 +166,13 @@ double coordinate(const json::Value& v, const std::string& file, const std::stri
   return x;
 }
 
-Vec3 point3(const json::Value& v, const std::string& file, const std::string& field) {
-  if (!v.is_array()) bad_field(file, field, "expected an array of 3 numbers, found " + type_word(v.type()));
+Vec3 point3(const Json& v, const std::string& file, const std::string& field) {
+  if (!v.is_array()) bad_field(file, field, "expected an array of 3 numbers, found " + type_word(json_kind(v)));
   if (v.size() != 3) bad_field(file, field, "expected 3 coordinates, found " + std::to_string(v.size()));
   return {coordinate(v[0], file, field + "[0]"), coordinate(v[1], file, field + "[1]"), coordinate(v[2], file, field + "[2]")};
 }
 
-LandmarkSet read_landmarks(const json::Value& results, const std::string& file) {
+LandmarkSet read_landmarks(const Json& results, const std::string& file) {
   LandmarkSet out;
   const Value* lm = member(results, "landmarks", Type::Object, file, "landmarks");
   if (!lm) return out;
@@ -183,7 +183,7 @@ LandmarkSet read_landmarks(const json::Value& results, const std::string& file) 
   return out;
 }
 
-Plane read_plane(const json::Value& results, const std::string& file) {
+Plane read_plane(const Json& results, const std::string& file) {
   const Value* sp = member(results, "symmetry_plane", Type::Object, file, "symmetry_plane");
   if (!sp) bad_field(file, "symmetry_plane", "missing");
   const Value* p = member(*sp, "point", Type::Array, file, "symmetry_plane.point");
@@ -197,7 +197,7 @@ Plane read_plane(const json::Value& results, const std::string& file) {
   return pl;
 }
 
-double score_at(const json::Value& results, const std::vector<std::string>& path, const std::string& file, bool* ok) {
+double score_at(const Json& results, const std::vector<std::string>& path, const std::string& file, bool* ok) {
   *ok = false;
   const Value* cur = &results;
   std::string field;
@@ -206,18 +206,18 @@ double score_at(const json::Value& results, const std::vector<std::string>& path
     cur = member(*cur, path[i], i + 1 < path.size() ? Type::Object : Type::Number, file, field);
     if (!cur) return NAN;
   }
-  if (!std::isfinite(cur->as_number())) return NAN;
+  if (!std::isfinite(cur->get<double>())) return NAN;
   *ok = true;
-  return cur->as_number();
+  return cur->get<double>();
 }
 
-SrdData read_srd(const json::Value& j, const std::string& f) {
+SrdData read_srd(const Json& j, const std::string& f) {
   SrdData d;
   if (!j.is_object()) bad_field(f, "(top level)", "expected an object");
   const Value* bins = member(j, "bins", Type::Number, f, "bins");
-  if (!bins || bins->as_number() != std::floor(bins->as_number()) || bins->as_number() < 1 || bins->as_number() > kMaxSrdBins)
+  if (!bins || bins->get<double>() != std::floor(bins->get<double>()) || bins->get<double>() < 1 || bins->get<double>() > kMaxSrdBins)
     bad_field(f, "bins", "expected an integer 1.." + std::to_string(kMaxSrdBins));
-  d.bins = static_cast<int>(bins->as_number());
+  d.bins = static_cast<int>(bins->get<double>());
   const Value* lms = member(j, "landmarks", Type::Object, f, "landmarks");
   if (!lms) return d;
   if (lms->size() > kMaxLandmarks) bad_field(f, "landmarks", "more than " + std::to_string(kMaxLandmarks) + " landmarks");
@@ -233,12 +233,12 @@ SrdData read_srd(const json::Value& j, const std::string& f) {
       const Value* h = member(blocks[i], "histogram", Type::Array, f, bf + ".histogram");
       if (!conf || !mir || !h) bad_field(f, bf, "needs configuration, mirrored and histogram");
       if (h->size() % static_cast<std::size_t>(d.bins)) bad_field(f, bf + ".histogram", "length is not a multiple of bins");
-      asymmetry::SrdBlock b{conf->as_string(), mir->as_bool(), {}};
+      asymmetry::SrdBlock b{conf->get<std::string>(), mir->get<bool>(), {}};
       for (std::size_t k = 0; k < h->size(); ++k) {
         const Value& e = (*h)[k];
-        if (!e.is_number() || !std::isfinite(e.as_number()) || e.as_number() < 0)
+        if (!e.is_number() || !std::isfinite(e.get<double>()) || e.get<double>() < 0)
           bad_field(f, bf + ".histogram[" + std::to_string(k) + "]", "expected a finite number >= 0");
-        b.histogram.push_back(e.as_number());
+        b.histogram.push_back(e.get<double>());
       }
       x.blocks.push_back(std::move(b));
     }

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "asymmetry/srd.h"
-#include "core/json.h"
+#include "core/json_text.h"
 #include "core/types.h"
 
 namespace ms::pipeline::compare_checks {
@@ -34,20 +34,20 @@ constexpr int kMaxSrdBins = 1024;
 // Strict accessors. `field` is the dotted path used in messages.
 // The member `key` of object `obj`: nullptr when absent or null; throws when
 // present with another type than `type`.
-const json::Value* member(const json::Value& obj, const std::string& key, json::Value::Type type, const std::string& file,
+const Json* member(const Json& obj, const std::string& key, JsonKind type, const std::string& file,
                           const std::string& field);
 // A finite number within ±kMaxCoordinateMm.
-double coordinate(const json::Value& v, const std::string& file, const std::string& field);
+double coordinate(const Json& v, const std::string& file, const std::string& field);
 // An array of 3 coordinates.
-Vec3 point3(const json::Value& v, const std::string& file, const std::string& field);
+Vec3 point3(const Json& v, const std::string& file, const std::string& field);
 
 // results.json's landmarks (object of name -> [x,y,z] or null) and symmetry
 // plane (point, unit-able normal), checked.
-LandmarkSet read_landmarks(const json::Value& results, const std::string& file);
-Plane read_plane(const json::Value& results, const std::string& file);
+LandmarkSet read_landmarks(const Json& results, const std::string& file);
+Plane read_plane(const Json& results, const std::string& file);
 // A number at a path of results.json for the score table: NaN with *ok=false
 // when a member is absent or null; throws when one has the wrong type.
-double score_at(const json::Value& results, const std::vector<std::string>& path, const std::string& file, bool* ok);
+double score_at(const Json& results, const std::vector<std::string>& path, const std::string& file, bool* ok);
 // srd.json (already parsed), checked field by field: a top-level object,
 // `bins` an integer 1..kMaxSrdBins, at most kMaxLandmarks `landmarks`, each an
 // array of {configuration, mirrored, histogram} blocks whose histogram length
@@ -56,23 +56,23 @@ struct SrdData {
   int bins = 0;
   std::map<std::string, asymmetry::Srd> landmarks;
 };
-SrdData read_srd(const json::Value& srd, const std::string& file);
+SrdData read_srd(const Json& srd, const std::string& file);
 // The mesh: at least kMinFaces faces, valid vertex indices, finite vertices
 // within ±kMaxCoordinateMm. Throws Error(4) naming the file.
 void check_mesh(const Mesh& m, const std::string& file);
 
 // One PRE/POST pair as the consistency checks see it.
 struct RunView {
-  const json::Value& results;
+  const Json& results;
   const Mesh& mesh;
   const LandmarkSet& landmarks;
   std::string file;  // its results.json, for messages
 };
 
 struct Consistency {
-  json::Value block = json::Value::object();  // compare.json `consistency`: every measured value
+  Json block = Json::object();  // compare.json `consistency`: every measured value
   std::vector<std::string> warnings;          // one line each (stderr, compare.json `warnings`)
-  json::Value details = json::Value::array();  // compare.json `warning_details`: {code, message, evidence}
+  Json details = Json::array();  // compare.json `warning_details`: {code, message, evidence}
 };
 
 // Dates, identifiers and shape of PRE and POST. Identifiers and dates are

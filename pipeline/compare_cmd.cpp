@@ -11,7 +11,7 @@
 #include "asymmetry/measures.h"
 #include "asymmetry/srd.h"
 #include "core/error.h"
-#include "core/json.h"
+#include "core/json_text.h"
 #include "descriptors/matching.h"
 #include "geometry/mesh_geometry.h"
 #include "pipeline/commands.h"
@@ -54,7 +54,7 @@ namespace {
 
 struct RunData {
   fs::path dir;
-  json::Value results;
+  Json results;
   std::map<std::string, asymmetry::Srd> srd;  // from srd.json (runs before 0.1 have none)
   int srd_bins = 0;
   Mesh mesh;
@@ -108,9 +108,9 @@ void check_scores(const RunData& d) {
 // srd.json, checked field by field (exit 4 naming the field; compare_checks::read_srd).
 void load_srd(const fs::path& file, RunData& d) {
   const std::string f = file.string();
-  json::Value j;
+  Json j;
   try {
-    j = json::Value::parse(slurp(file));
+    j = parse_json(slurp(file));
   } catch (const std::exception& e) {
     throw Error(ExitCode::InputInvalid, f + ": " + e.what());
   }
@@ -127,7 +127,7 @@ RunData load_run(const fs::path& dir) {
   d.dir = dir;
   const std::string rf = (dir / "results.json").string();
   try {
-    d.results = json::Value::parse(slurp(dir / "results.json"));
+    d.results = parse_json(slurp(dir / "results.json"));
   } catch (const std::exception& e) {
     throw Error(ExitCode::InputInvalid, rf + ": " + e.what());
   }
@@ -211,35 +211,35 @@ int compare_command(const cli::Args& args) {
   const double angle = std::acos(std::clamp((al.transform.R[0] + al.transform.R[4] + al.transform.R[8] - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
 
   // Scores side by side.
-  json::Value cj = json::Value::object();
+  Json cj = Json::object();
   cj["schema_version"] = "1.1";  // 1.1: stable `scores` keys, `tool`
   cj["tool"]["name"] = "mandisym";
   cj["tool"]["version"] = version();
   cj["pre"] = pre.dir.string();
   cj["post"] = post.dir.string();
-  json::Value alj = json::Value::object();
+  Json alj = Json::object();
   alj["landmark_pairs"] = static_cast<double>(al.landmark_pairs);
   alj["rms_mm"] = al.rms_mm;
   alj["rotation_deg"] = angle;
   alj["translation_mm"] = norm(al.transform.t);
   cj["alignment"] = alj;
-  json::Value ch = json::Value::object();
+  Json ch = Json::object();
   ch["mean_abs_mm"] = mean_abs;
   ch["p95_mm"] = p95;
   ch["max_outward_mm"] = max_out;
   ch["max_inward_mm"] = max_in;
   cj["change"] = ch;
   const std::vector<ScoreRow> rows = score_rows();
-  json::Value sj = json::Value::object();
+  Json sj = Json::object();
   std::ostringstream table;
   table << "<table><tr><th>score</th><th>pre</th><th>post</th><th>change</th></tr>\n";
   for (const auto& r : rows) {
     bool ok1 = false, ok2 = false;
     const double a = score(pre, r.path, &ok1), b = score(post, r.path, &ok2);
-    json::Value e = json::Value::object();
-    e["pre"] = ok1 ? json::Value(a) : json::Value();
-    e["post"] = ok2 ? json::Value(b) : json::Value();
-    e["change"] = ok1 && ok2 ? json::Value(b - a) : json::Value();
+    Json e = Json::object();
+    e["pre"] = ok1 ? Json(a) : Json();
+    e["post"] = ok2 ? Json(b) : Json();
+    e["change"] = ok1 && ok2 ? Json(b - a) : Json();
     e["label"] = r.label;
     sj[r.key] = e;
     table << "<tr><td>" << reports::html_escape(r.label) << "</td><td>" << (ok1 ? fixed(a, r.prec) : "n/a") << "</td><td>"
@@ -250,7 +250,7 @@ int compare_command(const cli::Args& args) {
 
   // SRD per landmark: how far the descriptor moved (same fields, no mirroring)
   // and each scan's mismatch with the mirror twin.
-  json::Value srdj = json::Value::object();
+  Json srdj = Json::object();
   std::ostringstream srd_table;
   if (pre.srd_bins > 0 && pre.srd_bins == post.srd_bins) {
     srd_table << "<table><tr><th>landmark</th><th>descriptor change pre&rarr;post (rad)</th><th>twin mismatch pre</th>"
@@ -262,10 +262,10 @@ int compare_command(const cli::Args& args) {
       bool ok1 = false, ok2 = false;
       const double m1 = score(pre, srd_mismatch_path(name), &ok1);
       const double m2 = score(post, srd_mismatch_path(name), &ok2);
-      json::Value e = json::Value::object();
-      e["pre_post_distance_rad"] = d >= 0 ? json::Value(d) : json::Value();
-      e["mirror_mismatch_pre_rad"] = ok1 ? json::Value(m1) : json::Value();
-      e["mirror_mismatch_post_rad"] = ok2 ? json::Value(m2) : json::Value();
+      Json e = Json::object();
+      e["pre_post_distance_rad"] = d >= 0 ? Json(d) : Json();
+      e["mirror_mismatch_pre_rad"] = ok1 ? Json(m1) : Json();
+      e["mirror_mismatch_post_rad"] = ok2 ? Json(m2) : Json();
       srdj[name] = e;
       srd_table << "<tr><td>" << reports::html_escape(name) << "</td><td>" << (d >= 0 ? fixed(d, 3) : "n/a") << "</td><td>"
                 << (ok1 ? fixed(m1, 3) : "&ndash;") << "</td><td>" << (ok2 ? fixed(m2, 3) : "&ndash;") << "</td></tr>\n";
@@ -275,23 +275,23 @@ int compare_command(const cli::Args& args) {
   cj["srd"] = srdj;
 
   // Transfers, and POST's bilateral measurements on the landmarks used.
-  json::Value tj = json::Value::object();
+  Json tj = Json::object();
   std::ostringstream transfer_table;
   if (!transfers.empty()) {
     transfer_table << "<table><tr><th>landmark</th><th>detected on post</th><th>registered</th><th>overlap</th>"
                       "<th>detected &harr; transferred (mm)</th><th>used</th><th>why</th></tr>\n";
     for (const auto& t : transfers) {
-      json::Value e = json::Value::object();
+      Json e = Json::object();
       e["detected"] = t.detected;
       e["registered"] = t.registered;
       e["used"] = t.used;
       e["overlap"] = t.overlap;
       e["patch_rms_mm"] = t.rms_mm;
       e["inliers"] = static_cast<double>(t.inliers);
-      e["disagreement_mm"] = t.disagreement_mm >= 0 ? json::Value(t.disagreement_mm) : json::Value();
-      json::Value pt = json::Value::array();
-      for (double x : t.transferred) pt.push_back(json::Value(x));
-      e["transferred"] = t.registered ? pt : json::Value();
+      e["disagreement_mm"] = t.disagreement_mm >= 0 ? Json(t.disagreement_mm) : Json();
+      Json pt = Json::array();
+      for (double x : t.transferred) pt.push_back(Json(x));
+      e["transferred"] = t.registered ? pt : Json();
       e["reason"] = t.reason;
       tj[t.name] = e;
       transfer_table << "<tr><td>" << reports::html_escape(t.name) << "</td><td>" << (t.detected ? "yes" : "no")
@@ -303,22 +303,22 @@ int compare_command(const cli::Args& args) {
     transfer_table << "</table>\n";
   }
   cj["landmark_transfer"] = tj;
-  cj["landmarks_transferred"] = json::Value::array();
-  for (const auto& n : transferred_names) cj["landmarks_transferred"].push_back(json::Value(n));
+  cj["landmarks_transferred"] = Json::array();
+  for (const auto& n : transferred_names) cj["landmarks_transferred"].push_back(Json(n));
   std::ostringstream bil_table;
   if (!transferred_names.empty()) {
     // Each run measured itself on its own detections; with landmarks replaced,
     // POST's bilateral numbers are measured again on the landmarks used.
     const auto pre_b = asymmetry::bilateral_measures(pre.landmarks, pre.plane);
     const auto post_b = asymmetry::bilateral_measures(post_lm, post.plane);
-    json::Value bj = json::Value::object();
+    Json bj = Json::object();
     bil_table << "<table><tr><th>L&minus;R</th><th>pre</th><th>post (with transferred landmarks)</th><th>change</th></tr>\n";
     for (const auto& [m, b] : post_b) {
       const auto it = pre_b.find(m);
-      json::Value e = json::Value::object();
-      e["pre"] = it != pre_b.end() ? json::Value(it->second.diff) : json::Value();
+      Json e = Json::object();
+      e["pre"] = it != pre_b.end() ? Json(it->second.diff) : Json();
       e["post"] = b.diff;
-      e["change"] = it != pre_b.end() ? json::Value(b.diff - it->second.diff) : json::Value();
+      e["change"] = it != pre_b.end() ? Json(b.diff - it->second.diff) : Json();
       bj[m] = e;
       bil_table << "<tr><td>" << reports::html_escape(m) << "</td><td>" << (it != pre_b.end() ? fixed(it->second.diff) : "n/a")
                 << "</td><td>" << fixed(b.diff) << "</td><td>" << (it != pre_b.end() ? fixed(b.diff - it->second.diff) : "n/a")
@@ -331,10 +331,10 @@ int compare_command(const cli::Args& args) {
   // Figures: the change map on the aligned POST surface, PRE's plane.
   const auto rv = reports::render_views(aligned, change, reports::ColourMap{"change post - pre (mm)", -5.0, 5.0, true},
                                         aligned_lm, pre.plane, (out / "qc" / "view_change").string());
-  cj["warnings"] = json::Value::array();
-  if (!rv.error.empty()) cj["warnings"].push_back(json::Value("3D views not rendered: " + rv.error));
-  if (al.landmark_pairs < 3) cj["warnings"].push_back(json::Value("fewer than 3 common landmarks: alignment started from the centroids"));
-  for (const auto& w : cons.warnings) cj["warnings"].push_back(json::Value(w));
+  cj["warnings"] = Json::array();
+  if (!rv.error.empty()) cj["warnings"].push_back(Json("3D views not rendered: " + rv.error));
+  if (al.landmark_pairs < 3) cj["warnings"].push_back(Json("fewer than 3 common landmarks: alignment started from the centroids"));
+  for (const auto& w : cons.warnings) cj["warnings"].push_back(Json(w));
   cj["warning_details"] = cons.details;
   cj["consistency"] = cons.block;
 
@@ -349,7 +349,7 @@ int compare_command(const cli::Args& args) {
     << " &middot; pre: " << reports::html_escape(pre.dir.filename().string()) << " &middot; post: "
     << reports::html_escape(post.dir.filename().string()) << "</p>\n";
   for (std::size_t i = 0; i < cj["warnings"].size(); ++i)
-    h << "<div class=\"warn\">&#9888; " << reports::html_escape(cj["warnings"][i].as_string()) << "</div>\n";
+    h << "<div class=\"warn\">&#9888; " << reports::html_escape(cj["warnings"][i].get<std::string>()) << "</div>\n";
   h << "<h2>Scores</h2>\n" << table.str()
     << "<p class=\"muted\">change = post &minus; pre. Each scan's scores are measured on its own surface and symmetry "
        "plane; see each run's report.html for details.</p>\n"
@@ -397,7 +397,7 @@ int compare_command(const cli::Args& args) {
   }
   h << "</body></html>\n";
   reports::write_text_atomic((out / "compare.html").string(), h.str());
-  reports::write_text_atomic((out / "compare.json").string(), cj.dump(2) + "\n");
+  reports::write_text_atomic((out / "compare.json").string(), dump_json(cj) + "\n");
   if (!quiet) std::cout << "compare: " << (out / "compare.html").string() << std::endl;
   return 0;
 }

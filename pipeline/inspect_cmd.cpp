@@ -6,7 +6,7 @@
 #include <iostream>
 
 #include "core/error.h"
-#include "core/json.h"
+#include "core/json_text.h"
 #include "io/dicom.h"
 #include "io/volume_io.h"
 #include "pipeline/commands.h"
@@ -56,17 +56,17 @@ int inspect_command(const cli::Args& a) {
     float mn = 1e30f, mx = -1e30f;
     for (float v : s.volume.hu) mn = std::min(mn, v), mx = std::max(mx, v);
     if (a.has("json")) {
-      auto o = json::Value::object();
+      auto o = Json::object();
       o["path"] = path;
       o["kind"] = s.info.kind;
-      o["size_voxels"] = json::Value::array_of(std::array<double, 3>{double(g.size[0]), double(g.size[1]), double(g.size[2])});
-      o["spacing_mm"] = json::Value::array_of(g.spacing);
-      o["origin_mm"] = json::Value::array_of(g.origin);
-      o["direction"] = json::Value::array_of(g.direction);
-      o["value_range"] = json::Value::array_of(std::array<double, 2>{mn, mx});
-      o["warnings"] = json::Value::array();
+      o["size_voxels"] = json_numbers(g.size);
+      o["spacing_mm"] = json_numbers(g.spacing);
+      o["origin_mm"] = json_numbers(g.origin);
+      o["direction"] = json_numbers(g.direction);
+      o["value_range"] = json_numbers(std::array<double, 2>{mn, mx});
+      o["warnings"] = Json::array();
       for (const auto& w : s.info.warnings) o["warnings"].push_back(w);
-      std::cout << o.dump(2) << "\n";
+      std::cout << dump_json(o) << "\n";
     } else {
       std::printf("%s: %s volume, %zu x %zu x %zu voxels, spacing %.3f x %.3f x %.3f mm, values %.0f..%.0f\n", path.c_str(),
                   s.info.kind.c_str(), g.size[0], g.size[1], g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], mn, mx);
@@ -81,16 +81,16 @@ int inspect_command(const cli::Args& a) {
   std::string why;
   const int chosen = io::dicom::choose(sc, layouts, &why);
   if (a.has("json")) {
-    auto o = json::Value::object();
+    auto o = Json::object();
     o["path"] = path;
     o["files"] = sc.files_seen;
     o["dicom_files"] = sc.dicom_files;
     o["non_image_dicom_files"] = sc.non_image_files;
-    o["series"] = json::Value::array();
+    o["series"] = Json::array();
     for (std::size_t i = 0; i < sc.series.size(); ++i) {
       const auto& s = sc.series[i];
       const auto& L = layouts[i];
-      auto e = json::Value::object();
+      auto e = Json::object();
       e["label"] = s.label;
       e["series_uid"] = s.uid;
       e["modality"] = s.modality;
@@ -99,20 +99,20 @@ int inspect_command(const cli::Args& a) {
       e["files"] = s.files.size();
       e["rows"] = s.frames.empty() ? 0u : s.frames[0].rows;
       e["columns"] = s.frames.empty() ? 0u : s.frames[0].cols;
-      e["pixel_spacing_mm"] = s.frames.empty() ? json::Value() : json::Value::array_of(std::array<double, 2>{s.frames[0].spacing_i, s.frames[0].spacing_j});
-      e["slice_spacing_mm"] = L.usable ? json::Value(L.nominal_spacing) : json::Value();
+      e["pixel_spacing_mm"] = s.frames.empty() ? Json() : json_numbers(std::array<double, 2>{s.frames[0].spacing_i, s.frames[0].spacing_j});
+      e["slice_spacing_mm"] = L.usable ? Json(L.nominal_spacing) : Json();
       e["orientation"] = L.orientation;
       e["tilt_deg"] = L.tilt_deg;
       e["extent_mm"] = L.extent_mm;
       e["usable"] = L.usable;
       e["problem"] = L.problem;
-      e["warnings"] = json::Value::array();
+      e["warnings"] = Json::array();
       for (const auto& w : L.warnings) e["warnings"].push_back(w);
       e["chosen"] = static_cast<int>(i) == chosen;
       o["series"].push_back(e);
     }
     o["choice"] = why;
-    std::cout << o.dump(2) << "\n";
+    std::cout << dump_json(o) << "\n";
     return chosen >= 0 ? 0 : static_cast<int>(ExitCode::InputInvalid);
   }
   std::printf("%s: %zu file(s), %zu DICOM, %zu non-image DICOM, %zu image series\n", path.c_str(), sc.files_seen,

@@ -6,7 +6,7 @@
 #include <iostream>
 
 #include "core/error.h"
-#include "core/json.h"
+#include "core/json_text.h"
 #include "io/png.h"
 #include "io/volume_io.h"
 #include "phantom/phantom.h"
@@ -67,10 +67,10 @@ const cli::CommandSpec& phantom_spec() {
 
 namespace {
 
-json::Value vec(const Vec3& v) { return json::Value::array_of(v); }
+Json vec(const Vec3& v) { return json_numbers(v); }
 
-json::Value side_json(const phantom::SideAsymmetry& a) {
-  auto o = json::Value::object();
+Json side_json(const phantom::SideAsymmetry& a) {
+  auto o = Json::object();
   o["ramus_height_mm"] = a.ramus_height_mm;
   o["body_length_mm"] = a.body_length_mm;
   o["gonial_angle_deg"] = a.gonial_angle_deg;
@@ -157,22 +157,22 @@ phantom::PhantomParams params_from(const cli::Args& a) {
 // ground_truth/: landmarks (JSON and Slicer markup), the true symmetry plane
 // and the imposed asymmetry.
 void write_ground_truth(const phantom::Phantom& ph, const fs::path& root) {
-  auto lm = json::Value::object();
+  auto lm = Json::object();
   lm["coordinate_system"] = "LPS";
   lm["units"] = "mm";
-  lm["landmarks"] = json::Value::object();
+  lm["landmarks"] = Json::object();
   for (const auto& n : landmark_names())
     if (const Vec3* q = ph.landmarks.find(n)) lm["landmarks"][n] = vec(*q);
-  reports::write_text_atomic((root / "ground_truth" / "landmarks.json").string(), lm.dump(2) + "\n");
+  reports::write_text_atomic((root / "ground_truth" / "landmarks.json").string(), dump_json(lm) + "\n");
   reports::write_text_atomic((root / "ground_truth" / "landmarks.mrk.json").string(), reports::landmarks_markup(ph.landmarks));
 
-  auto plane = json::Value::object();
+  auto plane = Json::object();
   plane["coordinate_system"] = "LPS";
   plane["point"] = vec(ph.plane.point);
   plane["normal"] = vec(ph.plane.normal);
-  reports::write_text_atomic((root / "ground_truth" / "symmetry_plane.json").string(), plane.dump(2) + "\n");
+  reports::write_text_atomic((root / "ground_truth" / "symmetry_plane.json").string(), dump_json(plane) + "\n");
 
-  auto asym = json::Value::object();
+  auto asym = Json::object();
   asym["left"] = side_json(ph.truth.side[0]);
   asym["right"] = side_json(ph.truth.side[1]);
   asym["chin_deviation_mm"] = ph.truth.chin_deviation_mm;
@@ -186,14 +186,14 @@ void write_ground_truth(const phantom::Phantom& ph, const fs::path& root) {
 }
 
 // ground_truth/params.json: every parameter the phantom was made with.
-json::Value params_json(const cli::Args& a, const phantom::PhantomParams& p, const phantom::Phantom& ph, const std::string& uid,
+Json params_json(const cli::Args& a, const phantom::PhantomParams& p, const phantom::Phantom& ph, const std::string& uid,
                         const std::string& compression) {
-  auto params = json::Value::object();
+  auto params = Json::object();
   params["tool_version"] = version();
   params["series_uid"] = uid;
   params["spacing_mm"] = vec(p.spacing);
   params["fov_mm"] = vec(p.fov_mm);
-  params["size_voxels"] = json::Value::array_of(std::array<double, 3>{double(ph.ct.geom.size[0]), double(ph.ct.geom.size[1]), double(ph.ct.geom.size[2])});
+  params["size_voxels"] = json_numbers(ph.ct.geom.size);
   params["noise_hu"] = p.noise_hu;
   params["blur_mm"] = p.blur_mm;
   params["yaw_deg"] = p.yaw_deg;
@@ -246,8 +246,8 @@ int phantom_command(const cli::Args& a) {
   io::write_mask(ph.mandible, (root / "ground_truth" / "mandible_mask.nii.gz").string());
 
   write_ground_truth(ph, root);
-  const json::Value params = params_json(a, p, ph, uid, spec.compression);
-  reports::write_text_atomic((root / "ground_truth" / "params.json").string(), params.dump(2) + "\n");
+  const Json params = params_json(a, p, ph, uid, spec.compression);
+  reports::write_text_atomic((root / "ground_truth" / "params.json").string(), dump_json(params) + "\n");
 
   if (!a.has("no-preview")) {
     fs::create_directories(root / "preview", ec);

@@ -432,8 +432,8 @@ void write_summaries(const Staging& staging, const reports::RunSummary& S, const
   reports::write_text_atomic(staging.path("results.csv"),
                              reports::csv_header() + reports::csv_row(S, S.qc.status == "fail" ? "qc_failed" : "ok"));
   reports::write_text_atomic(staging.path("log.txt"), log);
-  reports::write_text_atomic(staging.path("srd.json"), reports::srd_json(S.srd).dump(1) + "\n");
-  reports::write_text_atomic(staging.path("results.json"), reports::results_json(S).dump(2) + "\n");
+  reports::write_text_atomic(staging.path("srd.json"), dump_json(reports::srd_json(S.srd), 1) + "\n");
+  reports::write_text_atomic(staging.path("results.json"), dump_json(reports::results_json(S)) + "\n");
 }
 
 // A failed quality control: one line naming the fatal checks; exit code 8.

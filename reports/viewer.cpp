@@ -14,7 +14,7 @@
 #include <cstring>
 #include <sstream>
 
-#include "core/json.h"
+#include "core/json_text.h"
 #include "reports/viewer_script.h"  // generated from viewer.js: kViewerScript
 #include "reports/writers.h"
 #include "surface/vtk_mesh.h"
@@ -162,7 +162,7 @@ const char* viewer_script() { return kViewerScript; }
 
 std::string viewer_section_html(const ViewerMesh& vm, const PlaneFrame& frame, const Plane& plane,
                                 const LandmarkSet& landmarks, const ViewerOptions& options) {
-  using json::Value;
+  using Value = Json;
   // Extent of the mesh in the frame: sizes the plane quad and the camera.
   double size = 1;
   if (!vm.positions.empty()) {
@@ -180,13 +180,13 @@ std::string viewer_section_html(const ViewerMesh& vm, const PlaneFrame& frame, c
   d["size"] = size;
   // The plane in frame coordinates is x = const (its normal is the frame's x).
   d["plane_x"] = -plane.signed_distance(frame.origin) * dot(normalized(plane.normal), frame.x);
-  d["mirror_range"] = Value::array_of(std::array<double, 2>{options.mirror_lo, options.mirror_hi});
-  d["saf_range"] = Value::array_of(std::array<double, 2>{options.saf_lo, options.saf_hi});
+  d["mirror_range"] = json_numbers(std::array<double, 2>{options.mirror_lo, options.mirror_hi});
+  d["saf_range"] = json_numbers(std::array<double, 2>{options.saf_lo, options.saf_hi});
   d["landmarks"] = Value::array();
   for (const auto& [name, p] : landmarks.points) {
     auto l = Value::object();
     l["name"] = name;
-    l["p"] = Value::array_of(frame.to_frame(p));
+    l["p"] = json_numbers(frame.to_frame(p));
     d["landmarks"].push_back(l);
   }
 
@@ -217,7 +217,7 @@ std::string viewer_section_html(const ViewerMesh& vm, const PlaneFrame& frame, c
   h << "; colour scales as the static views: mirror distance " << fixed(options.mirror_lo, 1) << "&hellip;+"
     << fixed(options.mirror_hi, 1) << " mm, SAF map " << fixed(options.saf_lo, 2) << "&hellip;" << fixed(options.saf_hi, 2)
     << " rad.</p>\n</div>\n";
-  h << "<script type=\"application/json\" id=\"ms-viewer-data\">" << script_safe(d.dump(-1)) << "</script>\n";
+  h << "<script type=\"application/json\" id=\"ms-viewer-data\">" << script_safe(dump_json(d, -1)) << "</script>\n";
   h << "<script>\n" << kViewerScript << "\n</script>\n";
   return h.str();
 }

@@ -7,6 +7,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <vtkBase64Utilities.h>
+
 #include "core/error.h"
 #include "core/files.h"
 #include "reports/interpretation.h"
@@ -16,9 +18,9 @@
 namespace ms::reports {
 namespace {
 
-json::Value vec(const Vec3& v) { return json::Value::array_of(v); }
+Json vec(const Vec3& v) { return json_numbers(v); }
 
-json::Value num_or_null(double v, bool valid = true) { return valid && std::isfinite(v) ? json::Value(v) : json::Value(); }
+Json num_or_null(double v, bool valid = true) { return valid && std::isfinite(v) ? Json(v) : Json(); }
 
 }  // namespace
 
@@ -30,33 +32,17 @@ std::string fixed(double v, int prec) {
 }
 
 std::string base64_encode(const std::string& in) {
-  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((in.size() + 2) / 3 * 4);
-  std::size_t i = 0;
-  for (; i + 2 < in.size(); i += 3) {
-    const unsigned n = (static_cast<unsigned char>(in[i]) << 16) | (static_cast<unsigned char>(in[i + 1]) << 8) |
-                       static_cast<unsigned char>(in[i + 2]);
-    out += t[(n >> 18) & 63];
-    out += t[(n >> 12) & 63];
-    out += t[(n >> 6) & 63];
-    out += t[n & 63];
-  }
-  if (i < in.size()) {
-    unsigned n = static_cast<unsigned char>(in[i]) << 16;
-    if (i + 1 < in.size()) n |= static_cast<unsigned char>(in[i + 1]) << 8;
-    out += t[(n >> 18) & 63];
-    out += t[(n >> 12) & 63];
-    out += i + 1 < in.size() ? t[(n >> 6) & 63] : '=';
-    out += '=';
-  }
+  std::string out((in.size() + 2) / 3 * 4, '\0');
+  const unsigned long n = vtkBase64Utilities::Encode(reinterpret_cast<const unsigned char*>(in.data()), in.size(),
+                                                     reinterpret_cast<unsigned char*>(out.data()));
+  out.resize(n);
   return out;
 }
 
 namespace {
 
-json::Value stats_json(const asymmetry::DistanceStats& s, bool full) {
-  auto o = json::Value::object();
+Json stats_json(const asymmetry::DistanceStats& s, bool full) {
+  auto o = Json::object();
   o["mean_mm"] = s.mean_abs;
   if (full) o["signed_mean_mm"] = s.signed_mean;
   o["rms_mm"] = s.rms;
@@ -72,15 +58,15 @@ json::Value stats_json(const asymmetry::DistanceStats& s, bool full) {
 }
 
 // Slicer markups file skeleton and node header (LPS, mm).
-json::Value markup_root() {
-  auto root = json::Value::object();
+Json markup_root() {
+  auto root = Json::object();
   root["@schema"] =
       "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/Schema/"
       "markups-schema-v1.0.3.json#";
   return root;
 }
-json::Value markup_node(const char* type) {
-  auto m = json::Value::object();
+Json markup_node(const char* type) {
+  auto m = Json::object();
   m["type"] = type;
   m["coordinateSystem"] = "LPS";
   m["coordinateUnits"] = "mm";
@@ -117,7 +103,7 @@ void write_text_atomic(const std::string& path, const std::string& text) {
 
 namespace {
 
-using json::Value;
+using Value = Json;
 
 // results.json segmentation.atlas: the atlas's placement (docs/atlas.md).
 Value atlas_json(const RunSummary& s) {
@@ -129,7 +115,7 @@ Value atlas_json(const RunSummary& s) {
   at["mirrored_ncc"] = f.mirrored_ncc;
   at["coverage"] = f.coverage;
   at["agreement"] = s.atlas_agreement >= 0 ? Value(s.atlas_agreement) : Value();
-  at["centre_lps_mm"] = Value::array_of(f.pose.t);
+  at["centre_lps_mm"] = json_numbers(f.pose.t);
   at["scale"] = f.pose.scale;
   at["pitch_deg"] = f.pose.pitch * kDegPerRad;
   at["yaw_deg"] = f.pose.yaw * kDegPerRad;
@@ -147,7 +133,7 @@ Value qc_json(const RunSummary& s) {
     Value v = Value::object();
     v["name"] = c.name;
     v["value"] = std::isnan(c.value) ? Value() : Value(c.value);
-    v["allowed"] = Value::array_of(std::array<double, 2>{c.lo, c.hi});
+    v["allowed"] = json_numbers(std::array<double, 2>{c.lo, c.hi});
     if (!c.unit.empty()) v["unit"] = c.unit;
     v["source"] = c.source;
     v["passed"] = c.passed;
@@ -183,17 +169,17 @@ void qc_html(std::ostringstream& h, const RunSummary& s) {
 }  // namespace
 
 // results.json `input`: the scan as read.
-static json::Value input_json(const RunSummary& s) {
-  using json::Value;
+static Json input_json(const RunSummary& s) {
+  using Value = Json;
   auto in = Value::object();
   in["path"] = s.scan.path;
   in["kind"] = s.scan.kind;
   in["series_uid"] = s.scan.series_uid.empty() ? Value() : Value(s.scan.series_uid);
   in["modality"] = s.scan.modality.empty() ? Value() : Value(s.scan.modality);
-  in["size_voxels"] = Value::array_of(std::array<double, 3>{double(s.grid.size[0]), double(s.grid.size[1]), double(s.grid.size[2])});
+  in["size_voxels"] = json_numbers(s.grid.size);
   in["spacing_mm"] = vec(s.grid.spacing);
   in["origin_mm"] = vec(s.grid.origin);
-  in["direction"] = Value::array_of(s.grid.direction);
+  in["direction"] = json_numbers(s.grid.direction);
   in["sha256_of_pixel_data"] = s.scan.pixel_sha256;
   in["study_date"] = s.scan.study_date.empty() ? Value() : Value(s.scan.study_date);
   in["manufacturer"] = s.scan.manufacturer.empty() ? Value() : Value(s.scan.manufacturer);
@@ -202,8 +188,8 @@ static json::Value input_json(const RunSummary& s) {
 }
 
 // results.json `segmentation`.
-static json::Value segmentation_json(const RunSummary& s) {
-  using json::Value;
+static Json segmentation_json(const RunSummary& s) {
+  using Value = Json;
   auto seg = Value::object();
   seg["method"] = s.segmentation_method;
   seg["voxels"] = s.seg_voxels;
@@ -220,8 +206,8 @@ static json::Value segmentation_json(const RunSummary& s) {
 }
 
 // results.json `mesh`.
-static json::Value mesh_json(const RunSummary& s) {
-  using json::Value;
+static Json mesh_json(const RunSummary& s) {
+  using Value = Json;
   auto mesh = Value::object();
   mesh["vertices"] = s.mesh.vertices;
   mesh["faces"] = s.mesh.faces;
@@ -238,8 +224,8 @@ static json::Value mesh_json(const RunSummary& s) {
 }
 
 // results.json `landmark_detection`: the method, and each missing landmark with its reason.
-static json::Value landmark_detection_json(const RunSummary& s) {
-  using json::Value;
+static Json landmark_detection_json(const RunSummary& s) {
+  using Value = Json;
   auto d = Value::object();
   d["method"] = s.landmarks.method;
   auto& missing = d["missing"];
@@ -252,8 +238,8 @@ static json::Value landmark_detection_json(const RunSummary& s) {
 }
 
 // results.json `head_frame`: the superior axis used and where it came from.
-static json::Value head_frame_json(const RunSummary& s) {
-  using json::Value;
+static Json head_frame_json(const RunSummary& s) {
+  using Value = Json;
   auto hf = Value::object();
   hf["superior"] = vec(s.head_superior());
   hf["source"] = s.head_frame.source == "palatal" ? "palatal plane" : s.head_frame.source == "mandible" ? "mandible atlas" : "scan axes";
@@ -274,8 +260,8 @@ static json::Value head_frame_json(const RunSummary& s) {
 }
 
 // results.json `scores.saf`: the SAF score, its regions and the SRD.
-static json::Value saf_json(const RunSummary& s) {
-  using json::Value;
+static Json saf_json(const RunSummary& s) {
+  using Value = Json;
   auto saf = Value::object();
   saf["score"] = num_or_null(s.saf.score, s.saf.score >= 0);
   saf["unit"] = "rad";
@@ -302,8 +288,8 @@ static json::Value saf_json(const RunSummary& s) {
   return saf;
 }
 
-json::Value results_json(const RunSummary& s) {
-  using json::Value;
+Json results_json(const RunSummary& s) {
+  using Value = Json;
   auto root = Value::object();
   root["schema_version"] = kSchemaVersion;
   root["tool"]["name"] = "mandisym";
@@ -411,8 +397,8 @@ json::Value results_json(const RunSummary& s) {
   return root;
 }
 
-json::Value srd_json(const asymmetry::SrdResult& srd) {
-  using json::Value;
+Json srd_json(const asymmetry::SrdResult& srd) {
+  using Value = Json;
   Value root = Value::object();
   root["schema_version"] = "1.0";
   root["rings"] = srd.options.rings;
@@ -437,7 +423,7 @@ json::Value srd_json(const asymmetry::SrdResult& srd) {
 }
 
 std::string landmarks_markup(const LandmarkSet& lms) {
-  using json::Value;
+  using Value = Json;
   Value root = markup_root();
   Value m = markup_node("Fiducial");
   m["controlPoints"] = Value::array();
@@ -447,13 +433,13 @@ std::string landmarks_markup(const LandmarkSet& lms) {
     auto cp = Value::object();
     cp["id"] = std::to_string(id++);
     cp["label"] = n;
-    cp["position"] = p ? vec(*p) : Value::array_of(std::array<double, 3>{0, 0, 0});
+    cp["position"] = p ? vec(*p) : json_numbers(std::array<double, 3>{0, 0, 0});
     cp["positionStatus"] = p ? "defined" : "undefined";
     m["controlPoints"].push_back(cp);
   }
   root["markups"] = Value::array();
   root["markups"].push_back(m);
-  return root.dump(2) + "\n";
+  return dump_json(root) + "\n";
 }
 
 // A plane as Slicer's plane markups read it (Markups JSON schema v1.0.3;
@@ -465,7 +451,7 @@ std::string landmarks_markup(const LandmarkSet& lms) {
 // (LPS -> RAS), so the LPS axes are written as they are: baseToNode = [x y n p]
 // in LPS, objectToBase = diag(-1, -1, 1, 1) (identity once read).
 std::string plane_markup(const Plane& plane, double size_mm, const std::string& label) {
-  using json::Value;
+  using Value = Json;
   const Vec3 n = normalized(plane.normal);
   // In-plane axes: x from the scan axis least aligned with the normal.
   Vec3 helper{0, 0, 0};
@@ -482,11 +468,11 @@ std::string plane_markup(const Plane& plane, double size_mm, const std::string& 
   m["center"] = vec(plane.point);
   m["normal"] = vec(n);
   const Vec3& p = plane.point;
-  m["baseToNode"] = Value::array_of(std::array<double, 16>{x[0], y[0], n[0], p[0], x[1], y[1], n[1], p[1], x[2], y[2], n[2], p[2], 0, 0, 0, 1});
-  m["objectToBase"] = Value::array_of(std::array<double, 16>{-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1});
-  m["orientation"] = Value::array_of(std::array<double, 9>{x[0], y[0], n[0], x[1], y[1], n[1], x[2], y[2], n[2]});
-  m["size"] = Value::array_of(std::array<double, 3>{size_mm, size_mm, 0.0});
-  m["planeBounds"] = Value::array_of(std::array<double, 4>{-size_mm / 2, size_mm / 2, -size_mm / 2, size_mm / 2});
+  m["baseToNode"] = json_numbers(std::array<double, 16>{x[0], y[0], n[0], p[0], x[1], y[1], n[1], p[1], x[2], y[2], n[2], p[2], 0, 0, 0, 1});
+  m["objectToBase"] = json_numbers(std::array<double, 16>{-1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1});
+  m["orientation"] = json_numbers(std::array<double, 9>{x[0], y[0], n[0], x[1], y[1], n[1], x[2], y[2], n[2]});
+  m["size"] = json_numbers(std::array<double, 3>{size_mm, size_mm, 0.0});
+  m["planeBounds"] = json_numbers(std::array<double, 4>{-size_mm / 2, size_mm / 2, -size_mm / 2, size_mm / 2});
   auto cp = Value::object();
   cp["id"] = "1";
   cp["label"] = label;
@@ -496,7 +482,7 @@ std::string plane_markup(const Plane& plane, double size_mm, const std::string& 
   m["controlPoints"].push_back(cp);
   root["markups"] = Value::array();
   root["markups"].push_back(m);
-  return root.dump(2) + "\n";
+  return dump_json(root) + "\n";
 }
 
 std::string csv_quote(const std::string& x) {

@@ -4,16 +4,16 @@
 
 #include <string>
 
-#include "core/json.h"
+#include "core/json_text.h"
 #include "reports/run_summary.h"
 
 namespace ms::reports {
 
 inline constexpr const char* kSchemaVersion = "1.0";
 
-json::Value results_json(const RunSummary& s);
+Json results_json(const RunSummary& s);
 // srd.json: the SRD descriptors at the landmarks (METHOD.md §6; docs/method.md).
-json::Value srd_json(const asymmetry::SrdResult& srd);
+Json srd_json(const asymmetry::SrdResult& srd);
 std::string landmarks_markup(const LandmarkSet& landmarks);   // Slicer Fiducial, LPS
 std::string plane_markup(const Plane& plane, double size_mm,
                          const std::string& label = "mandible symmetry plane");  // Slicer Plane, LPS

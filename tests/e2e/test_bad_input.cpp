@@ -37,7 +37,7 @@
 #include <string>
 #include <vector>
 
-#include "core/json.h"
+#include "core/json_text.h"
 #include "tests/support/binary_run.h"
 #include "tests/support/dicom_forge.h"
 
@@ -834,9 +834,9 @@ TEST(BadInput, StaleStagingIsRemovedDecoysAndLiveRunsStayNonUtf8PathIsValidJson)
   std::ifstream f(out / "results.json", std::ios::binary);
   std::stringstream text;
   text << f.rdbuf();
-  ms::json::Value j;
-  ASSERT_NO_THROW(j = ms::json::Value::parse(text.str())) << "results.json is not valid JSON / UTF-8";
-  EXPECT_NE(j["input"]["path"].as_string().find("\xEF\xBF\xBD"), std::string::npos);
+  ms::Json j;
+  ASSERT_NO_THROW(j = ms::parse_json(text.str())) << "results.json is not valid JSON / UTF-8";
+  EXPECT_NE(j["input"]["path"].get<std::string>().find("\xEF\xBF\xBD"), std::string::npos);
   for (const auto& e : fs::directory_iterator(out))  // this run's own staging folder is gone
     if (e.path() != stale && e.path() != live && e.path() != wrong_token)
       EXPECT_NE(e.path().filename().string().rfind(".mandisym-partial-", 0) == 0 && fs::exists(e.path() / ".mandisym-staging"), true)

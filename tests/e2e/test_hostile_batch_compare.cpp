@@ -38,11 +38,13 @@
 #include <thread>
 #include <vector>
 
-#include "core/json.h"
+#include "core/json_text.h"
 #include "tests/support/binary_run.h"
 
 namespace fs = std::filesystem;
-using ms::json::Value;
+using Value = ms::Json;
+using ms::json_numbers;
+using ms::parse_json;
 
 namespace {
 
@@ -67,7 +69,7 @@ fs::path root() {
   return r;
 }
 
-Value load(const fs::path& p) { return Value::parse(slurp(p)); }
+Value load(const fs::path& p) { return parse_json(slurp(p)); }
 void save(const fs::path& p, const Value& v) { std::ofstream(p) << v.dump(2); }
 
 // The shared runner (tests/support/binary_run.h) with this suite's guard.
@@ -146,9 +148,9 @@ RunResult compare(const fs::path& pre, const fs::path& post, const fs::path& out
 
 // The warning_details entry with that code (null Value when absent).
 Value warning(const Value& c, const std::string& code) {
-  if (const Value* d = c.find("warning_details"))
-    for (const auto& w : d->elements())
-      if (w.at("code").as_string() == code) return w;
+  if (const Value* d = ms::find_member(c, "warning_details"))
+    for (const auto& w : *d)
+      if (w.at("code").get<std::string>() == code) return w;
   return Value();
 }
 
@@ -188,7 +190,7 @@ TEST(HostileCompare, NonFiniteOrAbsurdCoordinatesAreRefusedAtOnce) {
   const fs::path pre = pre_run(), out = root() / "cmp_huge";
   const fs::path huge = edited(pre, "huge", [](Value& r) {
     Value lm = Value::object();
-    for (const auto& [name, p] : r.at("landmarks").items()) lm[name] = Value::array_of(std::vector<double>{1e300, -1e300, 1e300});
+    for (const auto& [name, p] : r.at("landmarks").items()) lm[name] = json_numbers(std::vector<double>{1e300, -1e300, 1e300});
     r["landmarks"] = lm;
   });
   expect_invalid(compare(pre, huge, out), huge / "results.json", "landmarks.Co_L[0]");
@@ -196,7 +198,7 @@ TEST(HostileCompare, NonFiniteOrAbsurdCoordinatesAreRefusedAtOnce) {
   const fs::path far = edited(pre, "far", [](Value& r) { r["symmetry_plane"]["point"][1] = Value(2.0e4); });
   expect_invalid(compare(far, pre, out), far / "results.json", "symmetry_plane.point[1]");
   const fs::path zero = edited(pre, "zero_normal", [](Value& r) {
-    r["symmetry_plane"]["normal"] = Value::array_of(std::vector<double>{0, 0, 0});
+    r["symmetry_plane"]["normal"] = json_numbers(std::vector<double>{0, 0, 0});
   });
   expect_invalid(compare(pre, zero, out), zero / "results.json", "symmetry_plane.normal");
   EXPECT_FALSE(fs::exists(out / "compare.json"));
@@ -205,7 +207,7 @@ TEST(HostileCompare, NonFiniteOrAbsurdCoordinatesAreRefusedAtOnce) {
 // Defect 3: POST dated before PRE.
 TEST(HostileCompare, PostDatedBeforePreIsWarnedWithBothDates) {
   const fs::path pre = pre_run(), out = root() / "cmp_dates";
-  const std::string pre_date = load(pre / "results.json").at("input").at("study_date").as_string();
+  const std::string pre_date = load(pre / "results.json").at("input").at("study_date").get<std::string>();
   ASSERT_EQ(pre_date.size(), 8u);
   const std::string earlier = std::to_string(std::stoi(pre_date.substr(0, 4)) - 1) + pre_date.substr(4);
   const fs::path post = edited(post_run(), "earlier", [&](Value& r) { r["input"]["study_date"] = Value(earlier); });
@@ -216,10 +218,10 @@ TEST(HostileCompare, PostDatedBeforePreIsWarnedWithBothDates) {
   const Value c = load(out / "compare.json");
   const Value w = warning(c, "post_dated_before_pre");
   ASSERT_FALSE(w.is_null()) << c.dump(2);
-  EXPECT_EQ(w.at("evidence").at("pre_study_date").as_string(), pre_date);
-  EXPECT_EQ(w.at("evidence").at("post_study_date").as_string(), earlier);
+  EXPECT_EQ(w.at("evidence").at("pre_study_date").get<std::string>(), pre_date);
+  EXPECT_EQ(w.at("evidence").at("post_study_date").get<std::string>(), earlier);
   bool listed = false;
-  for (const auto& s : c.at("warnings").elements()) listed |= s.as_string() == w.at("message").as_string();
+  for (const auto& s : c.at("warnings")) listed |= s.get<std::string>() == w.at("message").get<std::string>();
   EXPECT_TRUE(listed) << "warning_details and warnings disagree";
 }
 
@@ -235,8 +237,8 @@ TEST(HostileCompare, AnotherPatientsMandibleIsWarnedAndTheSamePatientIsNot) {
   EXPECT_TRUE(warning(s, "ramus_configuration").is_null()) << s.at("consistency").dump(2);
   EXPECT_TRUE(warning(s, "post_dated_before_pre").is_null());
   const Value& shape = s.at("consistency").at("shape");
-  EXPECT_LT(shape.at("volume_ratio").as_number(), shape.at("volume_ratio_max").as_number());
-  EXPECT_LT(shape.at("ramus_rms_mm").as_number(), shape.at("ramus_rms_max_mm").as_number());
+  EXPECT_LT(shape.at("volume_ratio").get<double>(), shape.at("volume_ratio_max").get<double>());
+  EXPECT_LT(shape.at("ramus_rms_mm").get<double>(), shape.at("ramus_rms_max_mm").get<double>());
 
   r = compare(pre_run(), other_patient_run(), other);
   record_case(r, 0, "compare");
@@ -244,24 +246,24 @@ TEST(HostileCompare, AnotherPatientsMandibleIsWarnedAndTheSamePatientIsNot) {
   const Value o = load(other / "compare.json");
   const Value w = warning(o, "mandible_volume_ratio");
   ASSERT_FALSE(w.is_null()) << o.at("consistency").dump(2);
-  EXPECT_GT(w.at("evidence").at("ratio").as_number(), w.at("evidence").at("max_ratio").as_number());
-  EXPECT_GT(w.at("evidence").at("pre_volume_cm3").as_number(), w.at("evidence").at("post_volume_cm3").as_number());
+  EXPECT_GT(w.at("evidence").at("ratio").get<double>(), w.at("evidence").at("max_ratio").get<double>());
+  EXPECT_GT(w.at("evidence").at("pre_volume_cm3").get<double>(), w.at("evidence").at("post_volume_cm3").get<double>());
   EXPECT_NE(r.err.find("mandisym: warning: mandible volumes differ"), std::string::npos) << r.err;
   const Value rw = warning(o, "ramus_configuration");
   ASSERT_FALSE(rw.is_null()) << o.at("consistency").dump(2);
-  EXPECT_GT(rw.at("evidence").at("ramus_rms_mm").as_number(), rw.at("evidence").at("max_mm").as_number());
+  EXPECT_GT(rw.at("evidence").at("ramus_rms_mm").get<double>(), rw.at("evidence").at("max_mm").get<double>());
 }
 
 // Defect 3: identifiers of a de-identified comparison are never printed.
 TEST(HostileCompare, DeidentifiedRunsAreNotComparedByIdentifiersNorPrinted) {
   const fs::path out = root() / "cmp_deid";
   const Value pre = load(pre_run() / "results.json");
-  const std::string uid = pre.at("input").at("series_uid").as_string(), date = pre.at("input").at("study_date").as_string();
+  const std::string uid = pre.at("input").at("series_uid").get<std::string>(), date = pre.at("input").at("study_date").get<std::string>();
   const RunResult r = compare(pre_run(), deidentified_run(), out);
   record_case(r, 0, "compare");
   ASSERT_EQ(r.code, 0) << describe(r);
   const Value c = load(out / "compare.json");
-  EXPECT_FALSE(c.at("consistency").at("identity").at("compared").as_bool());
+  EXPECT_FALSE(c.at("consistency").at("identity").at("compared").get<bool>());
   for (const std::string& text : {r.err, slurp(out / "compare.json"), slurp(out / "compare.html")})
     for (const std::string& secret : {uid, date}) EXPECT_EQ(text.find(secret), std::string::npos) << secret;
 }

@@ -13,11 +13,13 @@
 #include <sstream>
 
 #include "core/array_order.h"
-#include "core/json.h"
+#include "core/json_text.h"
 #include "io/volume_io.h"
 
 namespace fs = std::filesystem;
-using ms::json::Value;
+using Value = ms::Json;
+using ms::json_numbers;
+using ms::parse_json;
 
 namespace {
 
@@ -55,7 +57,7 @@ Value load(const fs::path& p) {
   std::ifstream f(p);
   std::stringstream s;
   s << f.rdbuf();
-  return Value::parse(s.str());
+  return parse_json(s.str());
 }
 
 // The bytes of a gzip file ("" when it cannot be read).
@@ -96,8 +98,8 @@ std::string largest_sided_region(const Value& saf) {
   std::string name;
   double best = -1e30;
   for (const auto& [n, v] : saf.at("regions_lateral").items())
-    if (v.as_number() > best) best = v.as_number(), name = n;
-  EXPECT_EQ(saf.at("largest_region_sided").as_string(), name);
+    if (v.get<double>() > best) best = v.get<double>(), name = n;
+  EXPECT_EQ(saf.at("largest_region_sided").get<std::string>(), name);
   return name;
 }
 
@@ -127,32 +129,32 @@ TEST(EndToEnd, WritesEveryOutputOfTheContract) {
   for (const auto& e : fs::directory_iterator(out))
     EXPECT_EQ(e.path().filename().string().find(".mandisym-partial"), std::string::npos);
   const Value lm = load(out / "landmarks.mrk.json");
-  EXPECT_EQ(lm.at("markups")[0].at("coordinateSystem").as_string(), "LPS");
+  EXPECT_EQ(lm.at("markups")[0].at("coordinateSystem").get<std::string>(), "LPS");
   EXPECT_EQ(lm.at("markups")[0].at("controlPoints").size(), 8u);
   const Value pl = load(out / "symmetry_plane.mrk.json");
-  EXPECT_EQ(pl.at("markups")[0].at("type").as_string(), "Plane");
+  EXPECT_EQ(pl.at("markups")[0].at("type").get<std::string>(), "Plane");
   // The sample holds the skull base and vault above the condyles: the cranial
   // plane is fitted, and on this symmetric head it is the mandible's plane.
   const Value cp = load(out / "cranial_plane.mrk.json");
-  EXPECT_EQ(cp.at("markups")[0].at("controlPoints")[0].at("label").as_string(), "cranial mid-sagittal plane");
+  EXPECT_EQ(cp.at("markups")[0].at("controlPoints")[0].at("label").get<std::string>(), "cranial mid-sagittal plane");
   const Value cranial = load(out / "results.json").at("cranial_plane");
   ASSERT_TRUE(cranial.is_object());
-  EXPECT_LT(cranial.at("angle_to_mandible_plane_deg").as_number(), 0.5);
-  EXPECT_GT(cranial.at("bone_volume_cm3").as_number(), 50);
-  EXPECT_LT(std::abs(cranial.at("to_cranial_plane_mm").at("Me").as_number()), 1.0);
+  EXPECT_LT(cranial.at("angle_to_mandible_plane_deg").get<double>(), 0.5);
+  EXPECT_GT(cranial.at("bone_volume_cm3").get<double>(), 50);
+  EXPECT_LT(std::abs(cranial.at("to_cranial_plane_mm").at("Me").get<double>()), 1.0);
   // SRD descriptors at every landmark; on the symmetric sample each twin
   // matches its bin-reversed partner far better than as it is (chirality).
   const Value srd = load(out / "srd.json");
-  const std::size_t bins = static_cast<std::size_t>(srd.at("bins").as_number());
-  const std::size_t rings = static_cast<std::size_t>(srd.at("rings").as_number());
+  const std::size_t bins = static_cast<std::size_t>(srd.at("bins").get<double>());
+  const std::size_t rings = static_cast<std::size_t>(srd.at("rings").get<double>());
   EXPECT_EQ(srd.at("landmarks").size(), 8u);
   EXPECT_EQ(srd.at("landmarks").at("Co_L")[0].at("histogram").size(), bins * rings);
   const Value twins = load(out / "results.json").at("scores").at("saf").at("srd");
   for (const char* n : {"Co_L", "Cr_L", "Go_L", "Me", "Pog"}) {
     const Value& t = twins.at(n);
-    EXPECT_LT(t.at("mirror_mismatch_rad").as_number(), 0.5 * t.at("handedness_rad").as_number()) << n;
+    EXPECT_LT(t.at("mirror_mismatch_rad").get<double>(), 0.5 * t.at("handedness_rad").get<double>()) << n;
   }
-  EXPECT_EQ(twins.at("Co_L").at("twin").as_string(), "Co_R");
+  EXPECT_EQ(twins.at("Co_L").at("twin").get<std::string>(), "Co_R");
   std::ifstream html(out / "report.html");
   std::stringstream s;
   s << html.rdbuf();
@@ -187,25 +189,25 @@ TEST(EndToEnd, ResultsJsonHasEveryKeyOfOutputsMd) {
     EXPECT_TRUE(s.at("mirror").contains(k)) << k;
   for (const char* k : {"ramus_height_mm", "body_length_mm", "gonial_angle_deg"})
     for (const char* side : {"L", "R", "diff"}) EXPECT_TRUE(s.at("bilateral").at(k).contains(side)) << k << side;
-  EXPECT_EQ(r.at("schema_version").as_string(), "1.0");
-  EXPECT_EQ(r.at("input").at("kind").as_string(), "dicom");
-  EXPECT_EQ(r.at("input").at("modality").as_string(), "CT");
-  EXPECT_TRUE(r.at("mesh").at("closed").as_bool());
+  EXPECT_EQ(r.at("schema_version").get<std::string>(), "1.0");
+  EXPECT_EQ(r.at("input").at("kind").get<std::string>(), "dicom");
+  EXPECT_EQ(r.at("input").at("modality").get<std::string>(), "CT");
+  EXPECT_TRUE(r.at("mesh").at("closed").get<bool>());
   // The sample's teeth touch their neighbours: 4 handles, removed by the
   // plugs of a 1 mm closing (never the whole closing), so the surface is genus 0.
-  EXPECT_EQ(r.at("mesh").at("genus").as_number(), 0.0);
-  EXPECT_NE(r.at("mesh").at("closing_scope").as_string(), "everywhere");
+  EXPECT_EQ(r.at("mesh").at("genus").get<double>(), 0.0);
+  EXPECT_NE(r.at("mesh").at("closing_scope").get<std::string>(), "everywhere");
   // What the automatic segmentation used (the sample is calibrated, so the offset is small).
-  EXPECT_LT(std::abs(r.at("segmentation").at("calibration_offset_hu").as_number()), 20.0);
-  EXPECT_GT(r.at("segmentation").at("separation_depth_mm").as_number(), 0.0);
+  EXPECT_LT(std::abs(r.at("segmentation").at("calibration_offset_hu").get<double>()), 20.0);
+  EXPECT_GT(r.at("segmentation").at("separation_depth_mm").get<double>(), 0.0);
   for (const auto& n : {"Co_L", "Me"}) EXPECT_EQ(r.at("landmarks").at(n).size(), 3u);
   // Interpretation bands (docs/report.md): the symmetric sample is typical on every banded number.
   for (const char* k : {"saf_score", "mirror_distance", "ramus_height", "menton_deviation"}) {
     const Value& b = r.at("interpretation").at(k);
-    EXPECT_EQ(b.at("band").as_string(), "typical") << k;
+    EXPECT_EQ(b.at("band").get<std::string>(), "typical") << k;
     EXPECT_TRUE(b.at("value").is_number()) << k;
   }
-  EXPECT_TRUE(r.at("interpretation").at("saf_score").at("provisional").as_bool());
+  EXPECT_TRUE(r.at("interpretation").at("saf_score").at("provisional").get<bool>());
 }
 
 TEST(EndToEnd, SymmetricSampleMatchesItsGroundTruthPlane) {
@@ -213,13 +215,13 @@ TEST(EndToEnd, SymmetricSampleMatchesItsGroundTruthPlane) {
   const Value gt = load(kSamples / "symmetric" / "ground_truth" / "symmetry_plane.json");
   double cosang = 0;
   for (std::size_t a = 0; a < 3; ++a)
-    cosang += r.at("symmetry_plane").at("normal")[a].as_number() * gt.at("normal")[a].as_number();
+    cosang += r.at("symmetry_plane").at("normal")[a].get<double>() * gt.at("normal")[a].get<double>();
   EXPECT_GT(cosang, std::cos(1.0 * 3.14159265 / 180));  // within 1 degree
   double off = 0;
   for (std::size_t a = 0; a < 3; ++a)
-    off += (r.at("symmetry_plane").at("point")[a].as_number() - gt.at("point")[a].as_number()) * gt.at("normal")[a].as_number();
+    off += (r.at("symmetry_plane").at("point")[a].get<double>() - gt.at("point")[a].get<double>()) * gt.at("normal")[a].get<double>();
   EXPECT_LT(std::abs(off), 0.5);
-  EXPECT_LT(r.at("scores").at("mirror").at("mean_mm").as_number(), 0.3);
+  EXPECT_LT(r.at("scores").at("mirror").at("mean_mm").get<double>(), 0.3);
 }
 
 TEST(EndToEnd, AsymmetricSampleScoresHigherOnSafAndMirrorDistance) {
@@ -227,17 +229,17 @@ TEST(EndToEnd, AsymmetricSampleScoresHigherOnSafAndMirrorDistance) {
   const Value& asym = results("ramus_L_plus4mm");
   ASSERT_TRUE(sym.is_object());
   ASSERT_TRUE(asym.is_object());
-  const double saf_s = sym.at("scores").at("saf").at("score").as_number();
-  const double saf_a = asym.at("scores").at("saf").at("score").as_number();
+  const double saf_s = sym.at("scores").at("saf").at("score").get<double>();
+  const double saf_a = asym.at("scores").at("saf").at("score").get<double>();
   EXPECT_GT(saf_a, saf_s);
-  const double mir_s = sym.at("scores").at("mirror").at("rms_mm").as_number();
-  const double mir_a = asym.at("scores").at("mirror").at("rms_mm").as_number();
+  const double mir_s = sym.at("scores").at("mirror").at("rms_mm").get<double>();
+  const double mir_a = asym.at("scores").at("mirror").at("rms_mm").get<double>();
   EXPECT_GT(mir_a, mir_s + 0.2);
   // The left ramus is the longer one, by roughly the imposed amount.
-  const double diff = asym.at("scores").at("bilateral").at("ramus_height_mm").at("diff").as_number();
+  const double diff = asym.at("scores").at("bilateral").at("ramus_height_mm").at("diff").get<double>();
   EXPECT_GT(diff, 2.0);
   EXPECT_LT(diff, 6.0);
-  const double sym_diff = sym.at("scores").at("bilateral").at("ramus_height_mm").at("diff").as_number();
+  const double sym_diff = sym.at("scores").at("bilateral").at("ramus_height_mm").at("diff").get<double>();
   EXPECT_LT(std::abs(sym_diff), 1.0);
   // The sided SAF map points to the longer side (METHOD.md §7): its largest
   // regional mean is the left condyle (measured 0.076 against 0.045 on the
@@ -268,9 +270,9 @@ TEST(EndToEnd, SafScoreBarelyMovesWithTheEdgeLength) {
             0)
       << err;
   const Value coarse = load(out / "results.json");
-  EXPECT_LT(coarse.at("mesh").at("faces").as_number(), 0.4 * fine.at("mesh").at("faces").as_number());
-  const double a = fine.at("scores").at("saf").at("score").as_number();
-  const double b = coarse.at("scores").at("saf").at("score").as_number();
+  EXPECT_LT(coarse.at("mesh").at("faces").get<double>(), 0.4 * fine.at("mesh").at("faces").get<double>());
+  const double a = fine.at("scores").at("saf").at("score").get<double>();
+  const double b = coarse.at("scores").at("saf").at("score").get<double>();
   RecordProperty("saf_1mm_vs_2mm", std::to_string(a) + " " + std::to_string(b));
   EXPECT_NEAR(b / a, 1.0, 0.08);
   // The map on the output mesh: one value per vertex, not all zero.
@@ -346,9 +348,9 @@ TEST(EndToEnd, HeadCutBySideOfTheScanStopsOrWarns) {
   ASSERT_EQ(run("phantom -o " + ph.string() + " --spacing 1.5 --shift 20,0,0 --no-preview"), 0);
   ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string() + " -q --no-figures --no-cranial", &err), 0) << err;
   const Value r = load(out / "results.json");
-  EXPECT_TRUE(r.at("segmentation").at("truncated").as_bool());
+  EXPECT_TRUE(r.at("segmentation").at("truncated").get<bool>());
   EXPECT_TRUE(r.at("scores").at("saf").at("score").is_null());
-  EXPECT_GT(r.at("segmentation").at("volume_mm3").as_number(), 70000.0);  // 77.5 cm3 in the scan; 53 when the cut drained it
+  EXPECT_GT(r.at("segmentation").at("volume_mm3").get<double>(), 70000.0);  // 77.5 cm3 in the scan; 53 when the cut drained it
   fs::remove_all(ph);
   fs::remove_all(out);
 }
@@ -399,17 +401,17 @@ TEST(EndToEnd, MirroredScanSwapsTheSidesAndKeepsTheScores) {
     r[m] = load(out / "results.json");
   }
   const Value &a = r[0].at("scores"), &b = r[1].at("scores");
-  const double sa = a.at("saf").at("score").as_number(), sb = b.at("saf").at("score").as_number();
+  const double sa = a.at("saf").at("score").get<double>(), sb = b.at("saf").at("score").get<double>();
   RecordProperty("saf_as_is_vs_mirrored", std::to_string(sa) + " " + std::to_string(sb));
   EXPECT_NEAR(sb, sa, 0.01 * sa);
-  const double da = a.at("mirror").at("mean_mm").as_number(), db = b.at("mirror").at("mean_mm").as_number();
+  const double da = a.at("mirror").at("mean_mm").get<double>(), db = b.at("mirror").at("mean_mm").get<double>();
   EXPECT_NEAR(db, da, 0.01 * da);
   // L - R swaps sign: the longer ramus is the left one, then the right one.
-  const double ra = a.at("bilateral").at("ramus_height_mm").at("diff").as_number();
-  const double rb = b.at("bilateral").at("ramus_height_mm").at("diff").as_number();
+  const double ra = a.at("bilateral").at("ramus_height_mm").at("diff").get<double>();
+  const double rb = b.at("bilateral").at("ramus_height_mm").at("diff").get<double>();
   EXPECT_GT(ra, 1.0);
   EXPECT_NEAR(rb, -ra, 0.01 * ra);
-  EXPECT_EQ(r[0].at("mesh").at("vertices").as_number(), r[1].at("mesh").at("vertices").as_number());
+  EXPECT_EQ(r[0].at("mesh").at("vertices").get<double>(), r[1].at("mesh").at("vertices").get<double>());
   // The sided SAF map points to the changed side in both.
   EXPECT_EQ(largest_sided_region(a.at("saf")), "condyle_L");
   EXPECT_EQ(largest_sided_region(b.at("saf")), "condyle_R");
@@ -420,10 +422,10 @@ TEST(EndToEnd, PhantomVerbWritesReadableSeriesAndGroundTruth) {
   const fs::path out = temp_dir("phantom");
   ASSERT_EQ(run("phantom -o " + out.string() + " --spacing 2 --fov 120,110,110 --seed 5 --ramus-R 3 --no-preview"), 0);
   const Value lm = load(out / "ground_truth" / "landmarks.json");
-  EXPECT_EQ(lm.at("coordinate_system").as_string(), "LPS");
+  EXPECT_EQ(lm.at("coordinate_system").get<std::string>(), "LPS");
   EXPECT_EQ(lm.at("landmarks").size(), 8u);
   const Value asym = load(out / "ground_truth" / "asymmetry.json");
-  EXPECT_EQ(asym.at("right").at("ramus_height_mm").as_number(), 3.0);
+  EXPECT_EQ(asym.at("right").at("ramus_height_mm").get<double>(), 3.0);
   EXPECT_TRUE(fs::exists(out / "ground_truth" / "mandible_mask.nii.gz"));
   std::size_t n = 0;
   for (const auto& e : fs::directory_iterator(out / "dicom")) n += e.path().extension() == ".dcm";
@@ -451,19 +453,19 @@ TEST(EndToEnd, HeadsqUpsideDownFailsQualityControlNamingTheOrientation) {
   if (out.empty()) return;
   EXPECT_NE(err.find("--orientation"), std::string::npos) << err;
   const Value r = load(out / "results.json");
-  EXPECT_EQ(r.at("input").at("kind").as_string(), "nrrd");
-  EXPECT_EQ(r.at("input").at("size_voxels")[2].as_number(), 93);
-  EXPECT_EQ(r.at("qc").at("status").as_string(), "fail");
+  EXPECT_EQ(r.at("input").at("kind").get<std::string>(), "nrrd");
+  EXPECT_EQ(r.at("input").at("size_voxels")[2].get<double>(), 93);
+  EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "fail");
   bool orientation_failed = false;
   for (std::size_t i = 0; i < r.at("qc").at("checks").size(); ++i) {
     const Value& c = r.at("qc").at("checks")[i];
-    if (c.at("name").as_string() == "orientation_margin") orientation_failed = !c.at("passed").as_bool();
+    if (c.at("name").get<std::string>() == "orientation_margin") orientation_failed = !c.at("passed").get<bool>();
   }
   EXPECT_TRUE(orientation_failed);
   // The file carries no anatomical orientation: the run must say so.
   bool warned = false;
   for (std::size_t i = 0; i < r.at("warnings").size(); ++i)
-    warned |= r.at("warnings")[i].as_string().find("not anatomical") != std::string::npos;
+    warned |= r.at("warnings")[i].get<std::string>().find("not anatomical") != std::string::npos;
   EXPECT_TRUE(warned);
   // The report opens with the failure and shows no headline.
   std::ifstream in(out / "report.html");
@@ -481,14 +483,14 @@ TEST(EndToEnd, HeadsqUprightIsTheMandibleAndPassesTheGate) {
   if (out.empty()) return;
   const Value r = load(out / "results.json");
   // 3.2 x 3.2 x 1.5 mm: an adult mandible with teeth is ~60-120 cm3 (the whole skull would be several hundred).
-  const double cm3 = r.at("segmentation").at("volume_mm3").as_number() / 1000;
+  const double cm3 = r.at("segmentation").at("volume_mm3").get<double>() / 1000;
   RecordProperty("headsq_mandible_cm3", std::to_string(cm3));
   EXPECT_GT(cm3, 50.0);
   EXPECT_LT(cm3, 130.0);
-  EXPECT_TRUE(r.at("segmentation").at("atlas").at("found").as_bool());
-  EXPECT_NE(r.at("qc").at("status").as_string(), "fail");
+  EXPECT_TRUE(r.at("segmentation").at("atlas").at("found").get<bool>());
+  EXPECT_NE(r.at("qc").at("status").get<std::string>(), "fail");
   // 3.2 mm voxels do not resolve the cortex: the surface follows the mask alone.
-  EXPECT_EQ(r.at("parameters").at("surface_guide_level_hu").as_string(), "none");
+  EXPECT_EQ(r.at("parameters").at("surface_guide_level_hu").get<std::string>(), "none");
   // Against the reference made on its slices independently of the pipeline
   // (scripts/reference-headsq, docs/reference-headsq.md). Measured: Dice
   // 0.964; Co 2.9 / 3.9, Cr 0.6 / 1.9, Me 1.5, Pog 1.3 mm, each within 3 mm
@@ -505,7 +507,7 @@ TEST(EndToEnd, HeadsqUprightIsTheMandibleAndPassesTheGate) {
     const Value& p = r.at("landmarks").at(l);
     ASSERT_FALSE(p.is_null()) << l;
     double d2 = 0;
-    for (std::size_t a = 0; a < 3; ++a) d2 += std::pow(p[a].as_number() - ref.at(l)[a].as_number(), 2);
+    for (std::size_t a = 0; a < 3; ++a) d2 += std::pow(p[a].get<double>() - ref.at(l)[a].get<double>(), 2);
     std::printf("headsq %s %.1f mm from the reference\n", l.c_str(), std::sqrt(d2));
     EXPECT_LE(std::sqrt(d2), tol) << l;
   }
@@ -528,14 +530,14 @@ TEST(EndToEnd, VisibleHumanFemaleLandmarksMatchTheReference) {
   ASSERT_EQ(run("run " + ct.string() + " -o " + out.string() + " -q --no-figures --no-cranial", &err), 0) << err;
   const Value r = load(out / "results.json");
   const Value ref = load(fs::path(MANDISYM_SOURCE_DIR) / "tests" / "data" / "visible-human-female" / "reference_landmarks.json").at("landmarks");
-  EXPECT_EQ(r.at("qc").at("status").as_string(), "pass");
+  EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "pass");
   EXPECT_TRUE(r.at("scores").at("saf").at("score").is_number());
-  EXPECT_EQ(r.at("head_frame").at("source").as_string(), "palatal plane");
+  EXPECT_EQ(r.at("head_frame").at("source").get<std::string>(), "palatal plane");
   for (const char* l : {"Co_L", "Co_R", "Cr_L", "Cr_R", "Go_L", "Go_R", "Me", "Pog"}) {
     const Value& p = r.at("landmarks").at(l);
     ASSERT_FALSE(p.is_null()) << l << " missing";
     double d2 = 0;
-    for (std::size_t a = 0; a < 3; ++a) d2 += std::pow(p[a].as_number() - ref.at(l)[a].as_number(), 2);
+    for (std::size_t a = 0; a < 3; ++a) d2 += std::pow(p[a].get<double>() - ref.at(l)[a].get<double>(), 2);
     const double d = std::sqrt(d2);
     std::printf("%s %.1f mm from the reference\n", l, d);
     EXPECT_LE(d, l[0] == 'G' ? 4.0 : 3.0) << l;
@@ -550,10 +552,10 @@ TEST(EndToEnd, VisibleHumanFemaleLandmarksMatchTheReference) {
 TEST(EndToEnd, SurfaceFollowsTheCtOnlyWithItsOwnSegmentation) {
   const Value& r = results("symmetric");
   ASSERT_TRUE(r.is_object());
-  const double level = r.at("parameters").at("surface_guide_level_hu").as_number();
-  const double offset = r.at("segmentation").at("calibration_offset_hu").as_number();
+  const double level = r.at("parameters").at("surface_guide_level_hu").get<double>();
+  const double offset = r.at("segmentation").at("calibration_offset_hu").get<double>();
   EXPECT_NEAR(level, 700.0 + offset, 1e-3);
-  const double mesh = r.at("mesh").at("volume_mm3").as_number(), mask = r.at("segmentation").at("volume_mm3").as_number();
+  const double mesh = r.at("mesh").at("volume_mm3").get<double>(), mask = r.at("segmentation").at("volume_mm3").get<double>();
   EXPECT_NEAR(mesh, mask, 0.02 * mask);
   const fs::path out = temp_dir("external_mask");
   std::string err;
@@ -564,7 +566,7 @@ TEST(EndToEnd, SurfaceFollowsTheCtOnlyWithItsOwnSegmentation) {
             0)
       << err;
   const Value e = load(out / "results.json");
-  EXPECT_EQ(e.at("parameters").at("surface_guide_level_hu").as_string(), "none");
+  EXPECT_EQ(e.at("parameters").at("surface_guide_level_hu").get<std::string>(), "none");
   fs::remove_all(out);
 }
 
@@ -582,8 +584,8 @@ TEST(EndToEnd, ObliquePoseScoresBelowATwoMillimetreRamusDifference) {
     std::string err;
     EXPECT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string() + " -q --no-figures --no-cranial", &err), 0) << err;
     const Value r = load(out / "results.json");
-    scope = r.at("mesh").at("closing_scope").as_string();
-    const double saf = r.at("scores").at("saf").at("score").as_number();
+    scope = r.at("mesh").at("closing_scope").get<std::string>();
+    const double saf = r.at("scores").at("saf").at("score").get<double>();
     std::printf("%s: SAF %.4f rad, closing %s\n", name.c_str(), saf, scope.c_str());
     fs::remove_all(ph);
     fs::remove_all(out);
@@ -620,8 +622,8 @@ TEST(EndToEnd, RandomAnatomyFamilyIsRightOrRefused) {
     ASSERT_TRUE(code == 0 || code == 8) << name << ": exit " << code << ": " << err;
     const Value r = load(out / "results.json");
     const Value truth = load(ph / "ground_truth" / "landmarks.json").at("landmarks");
-    const double volume = r.at("segmentation").at("volume_mm3").as_number();
-    const double true_volume = load(ph / "ground_truth" / "params.json").at("mandible_volume_mm3").as_number();
+    const double volume = r.at("segmentation").at("volume_mm3").get<double>();
+    const double true_volume = load(ph / "ground_truth" / "params.json").at("mandible_volume_mm3").get<double>();
     double worst = 0;
     for (const char* l : {"Co_L", "Co_R", "Cr_L", "Cr_R", "Go_L", "Go_R", "Me", "Pog"}) {
       const Value& p = r.at("landmarks").at(l);
@@ -630,12 +632,12 @@ TEST(EndToEnd, RandomAnatomyFamilyIsRightOrRefused) {
         continue;
       }
       double d2 = 0;
-      for (std::size_t a = 0; a < 3; ++a) d2 += std::pow(p[a].as_number() - truth.at(l)[a].as_number(), 2);
+      for (std::size_t a = 0; a < 3; ++a) d2 += std::pow(p[a].get<double>() - truth.at(l)[a].get<double>(), 2);
       worst = std::max(worst, std::sqrt(d2));
     }
     const bool is_right = std::abs(volume / true_volume - 1) <= 0.05 && worst <= 3.0;
     std::printf("%s: exit %d, volume %.1f of %.1f cm3, worst landmark %.1f mm, qc %s\n", name.c_str(), code, volume / 1000,
-                true_volume / 1000, worst, r.at("qc").at("status").as_string().c_str());
+                true_volume / 1000, worst, r.at("qc").at("status").get<std::string>().c_str());
     EXPECT_TRUE(is_right || code == 8) << name << ": a wrong answer that passed the quality gate";
     right += is_right;
     fs::remove_all(ph);
@@ -654,17 +656,17 @@ TEST(EndToEnd, PitchedHeadIsCorrectedByThePalatalPlane) {
   ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string() + " -q --no-cranial", &err), 0) << err;
   const Value r = load(out / "results.json");
   const Value& hf = r.at("head_frame");
-  ASSERT_EQ(hf.at("source").as_string(), "palatal plane");
+  ASSERT_EQ(hf.at("source").get<std::string>(), "palatal plane");
   // The floor's candidates: with air above on the image-separated mask (84 cm3), under soft
   // tissue with the atlas-zone mask (71 cm3, whose incisal edges bound the search lower); the
   // line is the same within 1 degree (tilt 13.0 / 13.8).
-  EXPECT_TRUE(hf.at("palatal_floor").as_string() == "air" || hf.at("palatal_floor").as_string() == "soft tissue");
-  EXPECT_NEAR(hf.at("palatal_tilt_deg").as_number(), -20.0, 1.0);
+  EXPECT_TRUE(hf.at("palatal_floor").get<std::string>() == "air" || hf.at("palatal_floor").get<std::string>() == "soft tissue");
+  EXPECT_NEAR(hf.at("palatal_tilt_deg").get<double>(), -20.0, 1.0);
   const Value truth = load(ph / "ground_truth" / "landmarks.json");
   for (const char* name : {"Me", "Pog", "Cr_L", "Cr_R"}) {
     double d2 = 0;
     for (std::size_t a = 0; a < 3; ++a) {
-      const double d = r.at("landmarks").at(name)[a].as_number() - truth.at("landmarks").at(name)[a].as_number();
+      const double d = r.at("landmarks").at(name)[a].get<double>() - truth.at("landmarks").at(name)[a].get<double>();
       d2 += d * d;
     }
     EXPECT_LT(std::sqrt(d2), 2.0) << name;
@@ -685,14 +687,14 @@ TEST(EndToEnd, HeadsqPalatalPlaneIsFoundOnTheNasalFloor) {
   ASSERT_EQ(run("run " + nhdr.string() + " --hu-offset -1024 --orientation LPI -o " + out.string() + " -q --no-figures", &err), 0) << err;
   const Value r = load(out / "results.json");
   const Value& hf = r.at("head_frame");
-  ASSERT_EQ(hf.at("source").as_string(), "palatal plane");
+  ASSERT_EQ(hf.at("source").get<std::string>(), "palatal plane");
   // The floor's candidates: with air above on the image-separated mask (84 cm3), under soft
   // tissue with the atlas-zone mask (71 cm3, whose incisal edges bound the search lower); the
   // line is the same within 1 degree (tilt 13.0 / 13.8).
-  EXPECT_TRUE(hf.at("palatal_floor").as_string() == "air" || hf.at("palatal_floor").as_string() == "soft tissue");
-  EXPECT_GT(hf.at("palatal_tilt_deg").as_number(), 5.0);
-  EXPECT_LT(hf.at("palatal_tilt_deg").as_number(), 20.0);
-  EXPECT_LT(hf.at("palatal_rms_mm").as_number(), 1.0);
+  EXPECT_TRUE(hf.at("palatal_floor").get<std::string>() == "air" || hf.at("palatal_floor").get<std::string>() == "soft tissue");
+  EXPECT_GT(hf.at("palatal_tilt_deg").get<double>(), 5.0);
+  EXPECT_LT(hf.at("palatal_tilt_deg").get<double>(), 20.0);
+  EXPECT_LT(hf.at("palatal_rms_mm").get<double>(), 1.0);
   EXPECT_TRUE(r.at("landmarks").at("Go_L").is_array());
   EXPECT_TRUE(r.at("landmarks").at("Go_R").is_array());
   fs::remove_all(out);
@@ -765,10 +767,10 @@ TEST(EndToEnd, DicomStringsAreEscapedAndDeidentifyRemovesThem) {
   EXPECT_NE(html.find("A&amp;&quot;B&#39;&lt;i&gt;"), std::string::npos) << "manufacturer not shown escaped";
   // results.json stays valid JSON with the raw strings inside.
   const Value r = load(out / "results.json");
-  EXPECT_EQ(r.at("input").at("manufacturer").as_string(), "A&\"B'<i>");
+  EXPECT_EQ(r.at("input").at("manufacturer").get<std::string>(), "A&\"B'<i>");
 
   // --deidentify: UIDs, dates, descriptions and the input path reach no output.
-  const std::string uid = r.at("input").at("series_uid").as_string();
+  const std::string uid = r.at("input").at("series_uid").get<std::string>();
   ASSERT_FALSE(uid.empty());
   ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + anon.string() + " --no-figures --deidentify -q", &err), 0) << err;
   for (const auto& e : fs::recursive_directory_iterator(anon)) {
@@ -796,36 +798,36 @@ TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
   EXPECT_TRUE(fs::exists(out / "post" / "results.json"));
   EXPECT_TRUE(fs::exists(out / "post_aligned.vtp"));
   EXPECT_TRUE(fs::exists(out / "compare.html"));
-  EXPECT_EQ(c.at("alignment").at("landmark_pairs").as_number(), 8);
-  EXPECT_LT(c.at("alignment").at("rotation_deg").as_number(), 1.0);
+  EXPECT_EQ(c.at("alignment").at("landmark_pairs").get<double>(), 8);
+  EXPECT_LT(c.at("alignment").at("rotation_deg").get<double>(), 1.0);
   // The left condyle rose by 4 mm between the two scans.
-  const double out_mm = c.at("change").at("max_outward_mm").as_number();
+  const double out_mm = c.at("change").at("max_outward_mm").get<double>();
   EXPECT_GT(out_mm, 3.0);
   EXPECT_LT(out_mm, 4.5);
-  EXPECT_LT(c.at("change").at("mean_abs_mm").as_number(), 0.3);  // elsewhere unchanged
-  const double ramus = c.at("scores").at("ramus_height_mm_diff").at("change").as_number();
+  EXPECT_LT(c.at("change").at("mean_abs_mm").get<double>(), 0.3);  // elsewhere unchanged
+  const double ramus = c.at("scores").at("ramus_height_mm_diff").at("change").get<double>();
   EXPECT_GT(ramus, 2.5);
   EXPECT_LT(ramus, 4.5);
   // SRD: the left condyle's neighbourhood changed more than the chin's.
   const Value& srd = c.at("srd");
   ASSERT_TRUE(srd.contains("Co_L") && srd.contains("Pog"));
-  EXPECT_GT(srd.at("Co_L").at("pre_post_distance_rad").as_number(), srd.at("Pog").at("pre_post_distance_rad").as_number());
+  EXPECT_GT(srd.at("Co_L").at("pre_post_distance_rad").get<double>(), srd.at("Pog").at("pre_post_distance_rad").get<double>());
   // Every landmark's neighbourhood registers and agrees with post's own
   // detection: nothing is transferred on these clean scans.
   const Value& tr = c.at("landmark_transfer");
   EXPECT_EQ(tr.size(), 8u);
   for (const auto& [name, t] : tr.items()) {
-    EXPECT_TRUE(t.at("registered").as_bool()) << name;
-    EXPECT_FALSE(t.at("used").as_bool()) << name << ": " << t.at("reason").as_string();
-    EXPECT_LT(t.at("disagreement_mm").as_number(), 3.0) << name;
+    EXPECT_TRUE(t.at("registered").get<bool>()) << name;
+    EXPECT_FALSE(t.at("used").get<bool>()) << name << ": " << t.at("reason").get<std::string>();
+    EXPECT_LT(t.at("disagreement_mm").get<double>(), 3.0) << name;
   }
   EXPECT_EQ(c.at("landmarks_transferred").size(), 0u);
   // The same scan twice: no change.
   ASSERT_EQ(run("compare " + pre.string() + " " + pre.string() + " -o " + same.string() + " -q", &err), 0) << err;
   const Value s = load(same / "compare.json");
-  EXPECT_LT(s.at("change").at("p95_mm").as_number(), 0.05);
-  EXPECT_NEAR(s.at("scores").at("saf_score").at("change").as_number(), 0.0, 1e-12);
-  EXPECT_NEAR(s.at("srd").at("Co_L").at("pre_post_distance_rad").as_number(), 0.0, 1e-5);  // srd.json rounds to 1e-6
+  EXPECT_LT(s.at("change").at("p95_mm").get<double>(), 0.05);
+  EXPECT_NEAR(s.at("scores").at("saf_score").at("change").get<double>(), 0.0, 1e-12);
+  EXPECT_NEAR(s.at("srd").at("Co_L").at("pre_post_distance_rad").get<double>(), 0.0, 1e-5);  // srd.json rounds to 1e-6
   // A post run whose detector misplaced Go_L by 7 mm and missed Me (as a
   // plate or an osteotomy gap can make it): both come back from pre, and
   // post's bilateral measurements are taken again with them.
@@ -835,7 +837,7 @@ TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
   {
     Value r = load(pre / "results.json");
     Value& lm = r["landmarks"];
-    const double z = lm.at("Go_L")[2].as_number();
+    const double z = lm.at("Go_L")[2].get<double>();
     lm["Go_L"][2] = Value(z - 7);
     lm["Me"] = Value();
     std::ofstream(bad / "results.json") << r.dump(2);
@@ -843,11 +845,11 @@ TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
   ASSERT_EQ(run("compare " + pre.string() + " " + bad.string() + " -o " + fixed.string() + " -q", &err), 0) << err;
   const Value fx = load(fixed / "compare.json");
   ASSERT_EQ(fx.at("landmarks_transferred").size(), 2u);
-  EXPECT_EQ(fx.at("landmarks_transferred")[0].as_string(), "Go_L");
-  EXPECT_EQ(fx.at("landmarks_transferred")[1].as_string(), "Me");
-  EXPECT_NEAR(fx.at("landmark_transfer").at("Go_L").at("disagreement_mm").as_number(), 7.0, 1.0);
+  EXPECT_EQ(fx.at("landmarks_transferred")[0].get<std::string>(), "Go_L");
+  EXPECT_EQ(fx.at("landmarks_transferred")[1].get<std::string>(), "Me");
+  EXPECT_NEAR(fx.at("landmark_transfer").at("Go_L").at("disagreement_mm").get<double>(), 7.0, 1.0);
   // Same bone: with the transferred landmarks post measures what pre did.
-  EXPECT_NEAR(fx.at("bilateral_with_transferred_landmarks").at("gonion_to_plane_mm").at("change").as_number(), 0.0, 0.5);
+  EXPECT_NEAR(fx.at("bilateral_with_transferred_landmarks").at("gonion_to_plane_mm").at("change").get<double>(), 0.0, 0.5);
   EXPECT_NE(slurp_file(fixed / "compare.html").find("transferred here: Go_L, Me"), std::string::npos);
   ASSERT_EQ(run("compare " + pre.string() + " " + bad.string() + " -o " + fixed.string() + " -q --transfer-landmarks off", &err), 0);
   EXPECT_EQ(load(fixed / "compare.json").at("landmarks_transferred").size(), 0u);
@@ -917,7 +919,7 @@ namespace {
 // Every number of a results.json by its path ("scores.saf.score",
 // "landmarks.Co_L[0]"), booleans and strings left out.
 void numbers_of(const Value& v, const std::string& path, std::map<std::string, double>& out) {
-  if (v.is_number()) out[path] = v.as_number();
+  if (v.is_number()) out[path] = v.get<double>();
   if (v.is_array())
     for (std::size_t i = 0; i < v.size(); ++i) numbers_of(v[i], path + "[" + std::to_string(i) + "]", out);
   if (v.is_object())
@@ -1076,14 +1078,14 @@ TEST(EndToEnd, ReportDocsAgreeWithTheSamples) {
       const int decimals = dot == std::string::npos ? 0 : static_cast<int>(printed.size() - dot - 1);
       return std::abs(std::stod(printed) - value) <= 0.5 * std::pow(10.0, -decimals) + 1e-12;
     };
-    EXPECT_TRUE(same(cells[1], s.at("saf").at("score").as_number())) << cells[1] << " vs " << s.at("saf").at("score").as_number();
-    EXPECT_EQ(cells[2], i.at("saf_score").at("band").as_string());
-    const double ramus = s.at("bilateral").at("ramus_height_mm").at("diff").as_number();
+    EXPECT_TRUE(same(cells[1], s.at("saf").at("score").get<double>())) << cells[1] << " vs " << s.at("saf").at("score").get<double>();
+    EXPECT_EQ(cells[2], i.at("saf_score").at("band").get<std::string>());
+    const double ramus = s.at("bilateral").at("ramus_height_mm").at("diff").get<double>();
     EXPECT_TRUE(same(cells[3], ramus)) << cells[3] << " vs " << ramus;
-    EXPECT_TRUE(same(cells[4], i.at("ramus_height").at("value").as_number())) << cells[4];
-    EXPECT_EQ(cells[5], i.at("ramus_height").at("band").as_string());
-    EXPECT_TRUE(same(cells[6], s.at("mirror").at("p95_mm").as_number())) << cells[6];
-    EXPECT_EQ(cells[7], i.at("mirror_distance").at("band").as_string());
+    EXPECT_TRUE(same(cells[4], i.at("ramus_height").at("value").get<double>())) << cells[4];
+    EXPECT_EQ(cells[5], i.at("ramus_height").at("band").get<std::string>());
+    EXPECT_TRUE(same(cells[6], s.at("mirror").at("p95_mm").get<double>())) << cells[6];
+    EXPECT_EQ(cells[7], i.at("mirror_distance").at("band").get<std::string>());
     fs::remove_all(out);
   }
 }

@@ -14,12 +14,14 @@
 #include <random>
 #include <set>
 
-#include "core/json.h"
+#include "core/json_text.h"
 #include "reports/writers.h"
 
 namespace {
 
-using ms::json::Value;
+using Value = ms::Json;
+using ms::json_numbers;
+using ms::parse_json;
 
 void expect_numbers(const Value& m, const char* key, std::size_t n) {
   SCOPED_TRACE(key);
@@ -33,15 +35,15 @@ void expect_numbers(const Value& m, const char* key, std::size_t n) {
 // The schema's rules for the properties we write.
 void expect_schema_rules(const Value& root) {
   ASSERT_TRUE(root.contains("@schema") && root.at("@schema").is_string());
-  EXPECT_NE(root.at("@schema").as_string().find("markups-schema-v1.0.3.json"), std::string::npos);
+  EXPECT_NE(root.at("@schema").get<std::string>().find("markups-schema-v1.0.3.json"), std::string::npos);
   ASSERT_TRUE(root.contains("markups") && root.at("markups").is_array());
   for (std::size_t k = 0; k < root.at("markups").size(); ++k) {
     const Value& m = root.at("markups")[k];
     const std::set<std::string> types{"Fiducial", "Line", "Angle", "Curve", "ClosedCurve", "Plane", "ROI"};
-    ASSERT_TRUE(m.contains("type") && types.count(m.at("type").as_string()));
-    EXPECT_EQ(m.at("coordinateSystem").as_string(), "LPS");
-    EXPECT_EQ(m.at("coordinateUnits").as_string(), "mm");
-    if (m.at("type").as_string() == "Plane") {
+    ASSERT_TRUE(m.contains("type") && types.count(m.at("type").get<std::string>()));
+    EXPECT_EQ(m.at("coordinateSystem").get<std::string>(), "LPS");
+    EXPECT_EQ(m.at("coordinateUnits").get<std::string>(), "mm");
+    if (m.at("type").get<std::string>() == "Plane") {
       for (const auto& [key, n] : std::vector<std::pair<const char*, std::size_t>>{
                {"center", 3}, {"normal", 3}, {"size", 3}, {"planeBounds", 4}, {"objectToBase", 16}, {"baseToNode", 16}, {"orientation", 9}})
         expect_numbers(m, key, n);
@@ -53,7 +55,7 @@ void expect_schema_rules(const Value& root) {
       EXPECT_TRUE(cp.at("id").is_string() && cp.at("label").is_string());
       expect_numbers(cp, "position", 3);
       const std::set<std::string> status{"undefined", "preview", "defined"};
-      EXPECT_TRUE(status.count(cp.at("positionStatus").as_string()));
+      EXPECT_TRUE(status.count(cp.at("positionStatus").get<std::string>()));
     }
   }
 }
@@ -61,7 +63,7 @@ void expect_schema_rules(const Value& root) {
 using M4 = std::array<double, 16>;
 M4 read_matrix_lps(const Value& v) {  // as GetMatrix4x4Property(..., flipRasLps = true)
   M4 m{};
-  for (int i = 0; i < 16; ++i) m[static_cast<std::size_t>(i)] = v[static_cast<std::size_t>(i)].as_number() * (i < 8 ? -1.0 : 1.0);
+  for (int i = 0; i < 16; ++i) m[static_cast<std::size_t>(i)] = v[static_cast<std::size_t>(i)].get<double>() * (i < 8 ? -1.0 : 1.0);
   return m;
 }
 M4 multiply(const M4& a, const M4& b) {
@@ -78,7 +80,7 @@ std::pair<ms::Vec3, ms::Vec3> slicer_plane(const Value& m) {
   const M4 object_to_base = read_matrix_lps(m.at("objectToBase"));
   // UpdatePlaneFromPointNormal with one control point: rotation kept, origin = point 0 (RAS).
   const Value& p = m.at("controlPoints")[0].at("position");
-  const ms::Vec3 origin_ras{-p[0].as_number(), -p[1].as_number(), p[2].as_number()};
+  const ms::Vec3 origin_ras{-p[0].get<double>(), -p[1].get<double>(), p[2].get<double>()};
   for (int r = 0; r < 3; ++r) base_to_node[static_cast<std::size_t>(4 * r + 3)] = origin_ras[static_cast<std::size_t>(r)];
   const M4 object_to_node = multiply(base_to_node, object_to_base);
   const ms::Vec3 n_ras{object_to_node[2], object_to_node[6], object_to_node[10]};
@@ -97,7 +99,7 @@ TEST(Markups, PlanesObeyTheSchemaAndReadBackInSlicerWithTheFittedNormal) {
     plane.normal = ms::normalized({g(rng), g(rng), g(rng)});
     if (t == 0) plane.normal = {1, 0, 0};  // a symmetry plane of an upright head
     if (t == 1) plane.normal = {0, 0, 1};
-    const Value root = Value::parse(ms::reports::plane_markup(plane, 120.0, "symmetry plane"));
+    const Value root = parse_json(ms::reports::plane_markup(plane, 120.0, "symmetry plane"));
     expect_schema_rules(root);
     const auto [n, o] = slicer_plane(root.at("markups")[0]);
     const double angle = std::acos(std::clamp(ms::dot(n, plane.normal) / ms::norm(n), -1.0, 1.0)) * 180 / M_PI;
@@ -110,7 +112,7 @@ TEST(Markups, LandmarksObeyTheSchema) {
   ms::LandmarkSet lms;
   lms.set("Co_L", {50, 10, 20});
   lms.set("Me", {0, -60, -40});
-  const Value root = Value::parse(ms::reports::landmarks_markup(lms));
+  const Value root = parse_json(ms::reports::landmarks_markup(lms));
   expect_schema_rules(root);
   EXPECT_EQ(root.at("markups")[0].at("controlPoints").size(), ms::landmark_names().size());
 }

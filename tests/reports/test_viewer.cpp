@@ -4,6 +4,7 @@
 #include <string>
 
 #include "reports/viewer.h"
+#include "reports/writers.h"
 
 using namespace ms;
 using namespace ms::reports;
@@ -40,6 +41,19 @@ TEST(Viewer, Base64LittleEndian) {
   EXPECT_EQ(base64_le(std::vector<float>{1.0f}), "AACAPw==");  // 0x3F800000
   EXPECT_EQ(base64_le(std::vector<std::uint32_t>{1u, 0x01020304u}), "AQAAAAQDAgE=");
   EXPECT_EQ(base64_le(std::vector<float>{}), "");
+}
+
+// RFC 4648 section 10's test vectors, and every byte value.
+TEST(Viewer, Base64MatchesRfc4648) {
+  const char* const plain[] = {"", "f", "fo", "foo", "foob", "fooba", "foobar"};
+  const char* const coded[] = {"", "Zg==", "Zm8=", "Zm9v", "Zm9vYg==", "Zm9vYmE=", "Zm9vYmFy"};
+  for (int i = 0; i < 7; ++i) EXPECT_EQ(base64_encode(plain[i]), coded[i]) << plain[i];
+  std::string all;
+  for (int b = 0; b < 256; ++b) all += static_cast<char>(b);
+  const std::string e = base64_encode(all);
+  EXPECT_EQ(e.size(), 344u);
+  EXPECT_EQ(e.substr(0, 8), "AAECAwQF");
+  EXPECT_EQ(e.substr(e.size() - 8), "/P3+/w==");
 }
 
 TEST(Viewer, PlaneFrameIsRightHandedWithXAlongTheNormal) {

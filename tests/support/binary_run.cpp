@@ -17,7 +17,7 @@
 #include <sstream>
 #include <thread>
 
-#include "core/json.h"
+#include "core/json_text.h"
 
 namespace fs = std::filesystem;
 
@@ -69,19 +69,19 @@ void append_to_corpus_log(const RunResult& r, int expected_code, const std::stri
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   std::string line = r.err.substr(0, r.err.find('\n'));
   if (line.size() > 200) line.resize(200);
-  json::Value v = json::Value::object();
-  v["suite"] = json::Value(info ? std::string(info->test_suite_name()) : std::string());
-  v["test"] = json::Value(info ? std::string(info->name()) : std::string());
-  v["category"] = json::Value(category.empty() ? infer_category(r, expected_code) : category);
-  v["expected"] = json::Value(expected_code);
-  v["exit"] = r.exited ? json::Value(r.code) : json::Value();
-  v["signal"] = json::Value(r.signal);
-  v["guard_killed"] = json::Value(r.guard_killed);
-  v["peak_rss_mb"] = json::Value(std::round(static_cast<double>(r.peak_rss_kb) / 102.4) / 10.0);
-  v["seconds"] = json::Value(std::round(r.seconds * 100.0) / 100.0);
-  v["line"] = json::Value(line);
-  v["command"] = json::Value(r.command);
-  const std::string text = v.dump(-1) + "\n";
+  Json v = Json::object();
+  v["suite"] = Json(info ? std::string(info->test_suite_name()) : std::string());
+  v["test"] = Json(info ? std::string(info->name()) : std::string());
+  v["category"] = Json(category.empty() ? infer_category(r, expected_code) : category);
+  v["expected"] = Json(expected_code);
+  v["exit"] = r.exited ? Json(r.code) : Json();
+  v["signal"] = Json(r.signal);
+  v["guard_killed"] = Json(r.guard_killed);
+  v["peak_rss_mb"] = Json(std::round(static_cast<double>(r.peak_rss_kb) / 102.4) / 10.0);
+  v["seconds"] = Json(std::round(r.seconds * 100.0) / 100.0);
+  v["line"] = Json(line);
+  v["command"] = Json(r.command);
+  const std::string text = ms::dump_json(v, -1) + "\n";
   // O_APPEND: one write per line, so suites may run at the same time.
   const int fd = ::open(log, O_WRONLY | O_CREAT | O_APPEND, 0644);
   ASSERT_GE(fd, 0) << "cannot open MANDISYM_CORPUS_LOG " << log;
