@@ -288,105 +288,134 @@ static Json saf_json(const RunSummary& s) {
   return saf;
 }
 
-Json results_json(const RunSummary& s) {
-  using Value = Json;
-  auto root = Value::object();
-  root["schema_version"] = kSchemaVersion;
-  root["tool"]["name"] = "mandisym";
-  root["tool"]["version"] = s.tool_version;
-  root["coordinate_system"] = "LPS";  // every position in this file: patient LPS, mm
-  root["units"] = "mm";
+// results.json `tool`.
+static Json tool_json(const RunSummary& s) {
+  auto tool = Json::object();
+  tool["name"] = "mandisym";
+  tool["version"] = s.tool_version;
+  return tool;
+}
 
-  root["input"] = input_json(s);
-
-  root["segmentation"] = segmentation_json(s);
-
-  root["qc"] = qc_json(s);
-
-  root["mesh"] = mesh_json(s);
-
-  auto& lm = root["landmarks"];
-  lm = Value::object();
+// results.json `landmarks`: every METHOD.md landmark, null when missing.
+static Json landmarks_json(const RunSummary& s) {
+  auto lm = Json::object();
   for (const auto& n : landmark_names()) {
     const Vec3* p = s.landmarks.landmarks.find(n);
-    lm[n] = p ? vec(*p) : Value();
+    lm[n] = p ? vec(*p) : Json();
   }
-  root["landmark_detection"] = landmark_detection_json(s);
+  return lm;
+}
 
-  root["head_frame"] = head_frame_json(s);
-  auto& pl = root["symmetry_plane"];
+// results.json `symmetry_plane`: the mandible's fitted plane.
+static Json symmetry_plane_json(const RunSummary& s) {
+  auto pl = Json::object();
   pl["point"] = vec(s.reference.plane.point);
   pl["normal"] = vec(s.reference.plane.normal);
   pl["rms_landmark_residual_mm"] = s.reference.rms_landmark_residual_mm;
   pl["surface_rms_mm"] = num_or_null(s.reference.surface_rms_mm, s.reference.surface_rms_mm >= 0);
-  if (s.cranial.found) {
-    auto& cp = root["cranial_plane"];
-    cp["point"] = vec(s.cranial.plane.point);
-    cp["normal"] = vec(s.cranial.plane.normal);
-    cp["surface_rms_mm"] = num_or_null(s.cranial.surface_rms_mm, s.cranial.surface_rms_mm >= 0);
-    cp["bone_volume_cm3"] = s.cranial.bone_volume_cm3;
-    cp["angle_to_mandible_plane_deg"] = s.cranial.angle_to_mandible_plane_deg;
-    cp["to_cranial_plane_mm"] = Value::object();
-    for (const auto& [n, d] : s.cranial.to_cranial_mm) cp["to_cranial_plane_mm"][n] = d;
-    cp["to_mandible_plane_mm"] = Value::object();
-    for (const auto& [n, d] : s.cranial.to_mandible_mm) cp["to_mandible_plane_mm"][n] = d;
-  } else {
-    root["cranial_plane"] = Value();
-  }
-  auto& ref = root["reference_configuration"];
-  ref = Value::object();
+  return pl;
+}
+
+// results.json `cranial_plane`: the skull's mid-sagittal plane, null when not fitted.
+static Json cranial_plane_json(const RunSummary& s) {
+  if (!s.cranial.found) return Json();
+  auto cp = Json::object();
+  cp["point"] = vec(s.cranial.plane.point);
+  cp["normal"] = vec(s.cranial.plane.normal);
+  cp["surface_rms_mm"] = num_or_null(s.cranial.surface_rms_mm, s.cranial.surface_rms_mm >= 0);
+  cp["bone_volume_cm3"] = s.cranial.bone_volume_cm3;
+  cp["angle_to_mandible_plane_deg"] = s.cranial.angle_to_mandible_plane_deg;
+  cp["to_cranial_plane_mm"] = Json::object();
+  for (const auto& [n, d] : s.cranial.to_cranial_mm) cp["to_cranial_plane_mm"][n] = d;
+  cp["to_mandible_plane_mm"] = Json::object();
+  for (const auto& [n, d] : s.cranial.to_mandible_mm) cp["to_mandible_plane_mm"][n] = d;
+  return cp;
+}
+
+// results.json `reference_configuration`: the symmetric reference landmarks.
+static Json reference_configuration_json(const RunSummary& s) {
+  auto ref = Json::object();
   for (const auto& [n, p] : s.reference.reference.points) ref[n] = vec(p);
-  auto& av = root["landmark_asymmetry_mm"];
-  av = Value::object();
+  return ref;
+}
+
+// results.json `landmark_asymmetry_mm`: detected minus reference, in the plane's frame.
+static Json landmark_asymmetry_json(const RunSummary& s) {
+  auto av = Json::object();
   for (const auto& [n, v] : s.reference.asymmetry_vectors) {
     av[n]["medio_lateral"] = v[0];
     av[n]["antero_posterior"] = v[1];
     av[n]["supero_inferior"] = v[2];
   }
+  return av;
+}
 
-  root["scores"]["saf"] = saf_json(s);
-
-  // Interpretation bands of the headline numbers (docs/report.md: thresholds and sources).
-  auto& bands = root["interpretation"];
-  bands = Value::object();
-  for (const auto& it : interpret(interpretation_inputs(s))) {
-    auto& e = bands[it.key];
-    e["band"] = band_name(it.band);
-    e["value"] = num_or_null(it.banded_value);
-    e["thresholds"] = it.thresholds;
-    e["provisional"] = it.provisional;
-    e["sources"] = Value::array();
-    for (const auto& id : it.sources) e["sources"].push_back(id);
-  }
-
-  auto& mir = root["scores"]["mirror"];
-  mir = stats_json(s.mirror.overall, true);
-  mir["regions"] = Value::object();
+// results.json `scores.mirror`: the mirror surface distance, overall, per region, at the landmarks.
+static Json mirror_json(const RunSummary& s) {
+  Json mir = stats_json(s.mirror.overall, true);
+  mir["regions"] = Json::object();
   for (const auto& [n, st] : s.mirror.regions) mir["regions"][n] = stats_json(st, false);
-  mir["at_landmarks_mm"] = Value::object();
+  mir["at_landmarks_mm"] = Json::object();
   for (const auto& [n, v] : s.mirror.at_landmarks) mir["at_landmarks_mm"][n] = v;
+  return mir;
+}
 
-  auto& bil = root["scores"]["bilateral"];
-  bil = Value::object();
+// results.json `scores.bilateral`: left, right, L−R and L/R per measure.
+static Json bilateral_json(const RunSummary& s) {
+  auto bil = Json::object();
   for (const auto& [n, b] : s.bilateral) {
     bil[n]["L"] = b.L;
     bil[n]["R"] = b.R;
     bil[n]["diff"] = b.diff;
     bil[n]["ratio"] = b.ratio;
   }
+  return bil;
+}
 
-  auto& t = root["timings_s"];
-  t = Value::object();
+// results.json `scores`: SAF, mirror distance, bilateral measures.
+static Json scores_json(const RunSummary& s) {
+  auto scores = Json::object();
+  scores["saf"] = saf_json(s);
+  scores["mirror"] = mirror_json(s);
+  scores["bilateral"] = bilateral_json(s);
+  return scores;
+}
+
+// results.json `interpretation`: the headline numbers' bands (docs/report.md: thresholds and sources).
+static Json interpretation_json(const RunSummary& s) {
+  auto bands = Json::object();
+  for (const auto& it : interpret(interpretation_inputs(s))) {
+    auto& e = bands[it.key];
+    e["band"] = band_name(it.band);
+    e["value"] = num_or_null(it.banded_value);
+    e["thresholds"] = it.thresholds;
+    e["provisional"] = it.provisional;
+    e["sources"] = Json::array();
+    for (const auto& id : it.sources) e["sources"].push_back(id);
+  }
+  return bands;
+}
+
+// results.json `timings_s`: seconds per stage, in stage order, and the total.
+static Json timings_json(const RunSummary& s) {
+  auto t = Json::object();
   for (const auto& [n, v] : s.timings_s) t[n] = v;
   t["total"] = s.total_s;
+  return t;
+}
 
-  auto& w = root["warnings"];
-  w = Value::array();
+// results.json `warnings`.
+static Json warnings_json(const RunSummary& s) {
+  auto w = Json::array();
   for (const auto& x : s.warnings) w.push_back(x);
-  auto& p = root["parameters"];
-  p = Value::object();
+  return w;
+}
+
+// results.json `parameters`: a value that reads back whole as a finite number
+// is written as one, the others as strings.
+static Json parameters_json(const RunSummary& s) {
+  auto p = Json::object();
   for (const auto& [k, v] : s.parameters) {
-    // A value that reads back whole as a finite number is written as one.
     char* end = nullptr;
     const double x = std::strtod(v.c_str(), &end);
     if (!v.empty() && end == v.c_str() + v.size() && std::isfinite(x) && !std::isspace(static_cast<unsigned char>(v[0])))
@@ -394,6 +423,32 @@ Json results_json(const RunSummary& s) {
     else
       p[k] = v;
   }
+  return p;
+}
+
+// One function per top-level block, in the file's order.
+Json results_json(const RunSummary& s) {
+  auto root = Json::object();
+  root["schema_version"] = kSchemaVersion;
+  root["tool"] = tool_json(s);
+  root["coordinate_system"] = "LPS";  // every position in this file: patient LPS, mm
+  root["units"] = "mm";
+  root["input"] = input_json(s);
+  root["segmentation"] = segmentation_json(s);
+  root["qc"] = qc_json(s);
+  root["mesh"] = mesh_json(s);
+  root["landmarks"] = landmarks_json(s);
+  root["landmark_detection"] = landmark_detection_json(s);
+  root["head_frame"] = head_frame_json(s);
+  root["symmetry_plane"] = symmetry_plane_json(s);
+  root["cranial_plane"] = cranial_plane_json(s);
+  root["reference_configuration"] = reference_configuration_json(s);
+  root["landmark_asymmetry_mm"] = landmark_asymmetry_json(s);
+  root["scores"] = scores_json(s);
+  root["interpretation"] = interpretation_json(s);
+  root["timings_s"] = timings_json(s);
+  root["warnings"] = warnings_json(s);
+  root["parameters"] = parameters_json(s);
   return root;
 }
 
