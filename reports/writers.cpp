@@ -624,12 +624,8 @@ std::string viewer_html(const RunSummary& s) {
   }
 }
 
-}  // namespace
-
-std::string report_html(const RunSummary& s, const std::vector<std::string>& figures, const std::vector<std::string>& views,
-                        const std::string& views_note) {
-  const auto E = html_escape;
-  std::ostringstream h;
+// The page's head: title and stylesheet, then <body>.
+void page_head_html(std::ostringstream& h) {
   h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
     << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
     << "<title>MandiSym mandibular asymmetry report</title>\n<style>\n"
@@ -660,6 +656,12 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
        "padding:0 2px;border-radius:2px;white-space:nowrap}.viewer-ramp{height:14px;max-width:420px;border:1px solid #b8c2d0}"
        ".viewer-ticks{display:flex;justify-content:space-between;max-width:420px;font-size:.8em}\n"
     << "</style></head><body>\n";
+}
+
+// Identity of the input: kind, series UID, study date, series description,
+// scanner and kernel (every DICOM string escaped), grid and pixel hash.
+void identity_html(std::ostringstream& h, const RunSummary& s) {
+  const auto E = html_escape;
   h << "<h1>Mandibular asymmetry report</h1>\n<p class=\"muted\">MandiSym " << E(s.tool_version) << " &middot; input "
     << E(s.scan.kind) << " &middot; series " << E(s.scan.series_uid.empty() ? "-" : s.scan.series_uid)
     << " &middot; study date " << E(s.scan.study_date.empty() ? "-" : s.scan.study_date) << "</p>\n";
@@ -671,55 +673,75 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
     << " voxels, spacing " << fixed(s.grid.spacing[0]) << " &times; " << fixed(s.grid.spacing[1]) << " &times; "
     << fixed(s.grid.spacing[2]) << " mm. Pixel data SHA-256 <code>" << E(s.scan.pixel_sha256.substr(0, 16))
     << "&hellip;</code></p>\n";
-  const bool qc_failed = s.qc.status == "fail";
-  qc_html(h, s);
-  for (const auto& w : s.warnings) h << "<div class=\"warn\">&#9888; " << E(w) << "</div>\n";
+}
 
-  if (!qc_failed) {
-    h << "<h2>Headline</h2>\n";
-    headline_html(h, s);
-  }
+// The run's warnings, up front.
+void warnings_html(std::ostringstream& h, const RunSummary& s) {
+  for (const auto& w : s.warnings) h << "<div class=\"warn\">&#9888; " << html_escape(w) << "</div>\n";
+}
 
-  auto embed = [&](const std::string& f, const std::string& caption) {
-    std::ifstream in(f, std::ios::binary);
-    std::stringstream buf;
-    buf << in.rdbuf();
-    h << "<figure><img alt=\"" << E(caption) << "\" src=\"data:image/png;base64," << base64_encode(buf.str())
-      << "\"><figcaption>" << E(caption) << "</figcaption></figure>\n";
-  };
-  h << viewer_html(s);
+// A PNG embedded as a data URI, with its caption.
+std::string figure_html(const std::string& file, const std::string& caption) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream buf;
+  buf << in.rdbuf();
+  return "<figure><img alt=\"" + html_escape(caption) + "\" src=\"data:image/png;base64," + base64_encode(buf.str()) +
+         "\"><figcaption>" + html_escape(caption) + "</figcaption></figure>\n";
+}
+
+// The static 3D views, one grid per set (files named <set>_<view>.png), or why there are none.
+void views_html(std::ostringstream& h, const std::vector<std::string>& views, const std::string& views_note) {
   h << "<h2>3D views</h2>\n";
   if (views.empty()) {
-    h << "<p class=\"muted\">3D views not rendered: " << E(views_note.empty() ? "disabled" : views_note) << "</p>\n";
-  } else {
-    h << "<p class=\"muted\">In the frame of the fitted symmetry plane (translucent sheet); landmarks in green. Mirror "
-         "distance: red where this side bulges beyond its mirror image, blue where it lies inside it.</p>\n";
-    std::string set;
-    for (const auto& f : views) {
-      const std::string stem = std::filesystem::path(f).stem().string();  // e.g. view_mirror_front
-      const std::string this_set = stem.substr(0, stem.rfind('_'));
-      if (this_set != set) {
-        if (!set.empty()) h << "</div>\n";
-        h << "<div class=\"views\">\n";
-        set = this_set;
-      }
-      embed(f, stem);
-    }
-    h << "</div>\n";
+    h << "<p class=\"muted\">3D views not rendered: " << html_escape(views_note.empty() ? "disabled" : views_note)
+      << "</p>\n";
+    return;
   }
-
-  std::string head_frame_figure;
-  if (!figures.empty()) {
-    h << "<h2>Segmentation QC</h2>\n";
-    for (const auto& f : figures) {
-      const std::string stem = std::filesystem::path(f).stem().string();
-      if (stem == "qc_head_frame")
-        head_frame_figure = f;  // shown with the landmarks
-      else
-        embed(f, stem);
+  h << "<p class=\"muted\">In the frame of the fitted symmetry plane (translucent sheet); landmarks in green. Mirror "
+       "distance: red where this side bulges beyond its mirror image, blue where it lies inside it.</p>\n";
+  std::string set;
+  for (const auto& f : views) {
+    const std::string stem = std::filesystem::path(f).stem().string();  // e.g. view_mirror_front
+    const std::string this_set = stem.substr(0, stem.rfind('_'));
+    if (this_set != set) {
+      if (!set.empty()) h << "</div>\n";
+      h << "<div class=\"views\">\n";
+      set = this_set;
     }
+    h << figure_html(f, stem);
   }
+  h << "</div>\n";
+}
 
+// The QC figures: segmentation slices, and the head-frame slice shown with the landmarks.
+struct QcFigures {
+  bool drawn = false;  // figures were drawn (not --no-figures)
+  std::vector<std::string> slices;
+  std::string head_frame;  // empty when absent
+};
+
+QcFigures sort_qc_figures(const std::vector<std::string>& figures) {
+  QcFigures q;
+  q.drawn = !figures.empty();
+  for (const auto& f : figures) {
+    if (std::filesystem::path(f).stem().string() == "qc_head_frame")
+      q.head_frame = f;
+    else
+      q.slices.push_back(f);
+  }
+  return q;
+}
+
+// Segmentation QC slices (nothing when figures were not drawn).
+void qc_slices_html(std::ostringstream& h, const QcFigures& qc) {
+  if (!qc.drawn) return;
+  h << "<h2>Segmentation QC</h2>\n";
+  for (const auto& f : qc.slices) h << figure_html(f, std::filesystem::path(f).stem().string());
+}
+
+// Landmarks in LPS with their asymmetry vectors (a missing one with its reason).
+void landmarks_html(std::ostringstream& h, const RunSummary& s) {
+  const auto E = html_escape;
   h << "<h2>Landmarks (LPS mm)</h2>\n<table><tr><th>landmark</th><th>x (L)</th><th>y (P)</th><th>z (S)</th>"
        "<th>medio-lateral</th><th>antero-posterior</th><th>supero-inferior</th></tr>\n";
   for (const auto& n : landmark_names()) {
@@ -737,6 +759,11 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   }
   h << "</table>\n<p class=\"muted\">Last three columns: detected minus symmetric reference configuration, in the "
        "symmetry plane's frame (mm).</p>\n";
+}
+
+// The head frame the landmarks were labelled in (palatal plane, mandible atlas
+// or scan axes), with its QC slice.
+void head_frame_html(std::ostringstream& h, const RunSummary& s, const std::string& head_frame_figure) {
   if (s.palate.found)
     h << "<p>Head frame: left/right from the mandible's symmetry plane; superior is the normal of the palatal plane, fitted to "
          "the nasal floor (" << s.palate.samples << " samples over " << fixed(s.palate.length_mm, 0) << " mm, residual "
@@ -744,50 +771,60 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
       << "&deg; to the scan's axial plane (+: posterior end higher, head flexed). Co and Cr are the most superior points, "
          "Me the lowest and Pog the most anterior in this frame, whatever the head's pitch in the scanner.</p>\n";
   else if (s.head_frame.source == "mandible")
-    h << "<p>Head frame: palatal plane not used (" << E(s.palate.reason) << "); superior is the head's axis given by the "
+    h << "<p>Head frame: palatal plane not used (" << html_escape(s.palate.reason) << "); superior is the head's axis given by the "
          "mandible atlas's pose (placed on the mandible and the bone around it; within about 15&deg; of the palatal "
          "normal on the training scans).</p>\n";
   else
-    h << "<p>Head frame: palatal plane not found (" << E(s.palate.reason) << "); superior is the scan's axis, so a head "
+    h << "<p>Head frame: palatal plane not found (" << html_escape(s.palate.reason) << "); superior is the scan's axis, so a head "
          "pitched in the scanner moves Me, Pog and Cr along their borders.</p>\n";
   if (!head_frame_figure.empty())
-    embed(head_frame_figure, "qc_head_frame: mid-sagittal slice, anterior left; palatal line (cyan), Me and Pog (green)");
+    h << figure_html(head_frame_figure, "qc_head_frame: mid-sagittal slice, anterior left; palatal line (cyan), Me and Pog (green)");
+}
 
+// Bilateral measures: left, right, L−R, L/R.
+void bilateral_html(std::ostringstream& h, const RunSummary& s) {
   h << "<h2>Bilateral measures</h2>\n<table><tr><th>measure</th><th>left</th><th>right</th><th>L&minus;R</th>"
        "<th>L/R</th></tr>\n";
   for (const auto& [n, b] : s.bilateral)
-    h << "<tr><td>" << E(n) << "</td><td>" << fixed(b.L) << "</td><td>" << fixed(b.R) << "</td><td>" << fixed(b.diff)
+    h << "<tr><td>" << html_escape(n) << "</td><td>" << fixed(b.L) << "</td><td>" << fixed(b.R) << "</td><td>" << fixed(b.diff)
       << "</td><td>" << fixed(b.ratio, 3) << "</td></tr>\n";
   h << "</table>\n";
+}
 
-  if (s.cranial.found) {
-    // Positional versus shape asymmetry (METHOD.md §5): the chin against the
-    // skull's plane and against the mandible's own.
-    const auto& c = s.cranial;
-    h << "<h2>Mandible against the skull</h2>\n<p>Cranial mid-sagittal plane (mirror plane of the bone above the condyles, "
-      << fixed(c.bone_volume_cm3, 0) << " cm&sup3;, residual " << fixed(c.surface_rms_mm) << " mm): "
-      << fixed(c.angle_to_mandible_plane_deg, 1) << "&deg; from the mandible's own plane.</p>\n"
-      << "<table><tr><th>point</th><th>to the cranial plane (mm)</th><th>to the mandible's plane (mm)</th></tr>\n";
-    for (const auto& [n, d] : c.to_cranial_mm) {
-      const auto it = c.to_mandible_mm.find(n);
-      h << "<tr><td>" << E(n == "condylar_midpoint" ? std::string("midpoint of the condylions") : n) << "</td><td>" << fixed(d)
-        << "</td><td>" << (it != c.to_mandible_mm.end() ? fixed(it->second) : "") << "</td></tr>\n";
-    }
-    h << "</table>\n<p class=\"muted\">Signed, + towards the patient's left. The chin's distance to the cranial plane is "
-         "its total deviation; the mandible's own plane leans with a deformed mandible and absorbs much of it (on "
-         "phantoms a 4 mm chin deviation reads 4.0 mm against the skull and 0.1 mm against the mandible's plane). "
-         "Condyles off the cranial plane with a symmetric mandible suggest a positional shift rather than a "
-         "deformity. Plane: cranial_plane.mrk.json.</p>\n";
+// Positional versus shape asymmetry (METHOD.md §5): the chin against the
+// skull's plane and against the mandible's own. Nothing without a cranial plane.
+void cranial_html(std::ostringstream& h, const RunSummary& s) {
+  if (!s.cranial.found) return;
+  const auto& c = s.cranial;
+  h << "<h2>Mandible against the skull</h2>\n<p>Cranial mid-sagittal plane (mirror plane of the bone above the condyles, "
+    << fixed(c.bone_volume_cm3, 0) << " cm&sup3;, residual " << fixed(c.surface_rms_mm) << " mm): "
+    << fixed(c.angle_to_mandible_plane_deg, 1) << "&deg; from the mandible's own plane.</p>\n"
+    << "<table><tr><th>point</th><th>to the cranial plane (mm)</th><th>to the mandible's plane (mm)</th></tr>\n";
+  for (const auto& [n, d] : c.to_cranial_mm) {
+    const auto it = c.to_mandible_mm.find(n);
+    h << "<tr><td>" << html_escape(n == "condylar_midpoint" ? std::string("midpoint of the condylions") : n) << "</td><td>"
+      << fixed(d) << "</td><td>" << (it != c.to_mandible_mm.end() ? fixed(it->second) : "") << "</td></tr>\n";
   }
+  h << "</table>\n<p class=\"muted\">Signed, + towards the patient's left. The chin's distance to the cranial plane is "
+       "its total deviation; the mandible's own plane leans with a deformed mandible and absorbs much of it (on "
+       "phantoms a 4 mm chin deviation reads 4.0 mm against the skull and 0.1 mm against the mandible's plane). "
+       "Condyles off the cranial plane with a symmetric mandible suggest a positional shift rather than a "
+       "deformity. Plane: cranial_plane.mrk.json.</p>\n";
+}
 
+// A regional SAF value with 3 decimals, empty when the region has none.
+std::string saf_cell(const std::map<std::string, double>& m, const std::string& n) {
+  const auto it = m.find(n);
+  return it != m.end() ? fixed(it->second, 3) : std::string();
+}
+
+// Regional tables: mirror distance, SAF map, sided and lateral SAF map; the
+// lateral map's largest region named under the table.
+void regional_html(std::ostringstream& h, const RunSummary& s) {
   h << "<h2>Regional asymmetry</h2>\n<table><tr><th>region</th><th>mirror mean |d| (mm)</th><th>RMS</th><th>p95</th>"
        "<th>max</th><th>SAF map mean (rad)</th><th>SAF map, sided (rad)</th><th>lateral (rad)</th></tr>\n";
-  auto saf_cell = [](const std::map<std::string, double>& m, const std::string& n) {
-    const auto it = m.find(n);
-    return it != m.end() ? fixed(it->second, 3) : std::string();
-  };
   for (const auto& [n, st] : s.mirror.regions)
-    h << "<tr><td>" << E(n) << "</td><td>" << fixed(st.mean_abs) << "</td><td>" << fixed(st.rms) << "</td><td>"
+    h << "<tr><td>" << html_escape(n) << "</td><td>" << fixed(st.mean_abs) << "</td><td>" << fixed(st.rms) << "</td><td>"
       << fixed(st.p95) << "</td><td>" << fixed(st.max) << "</td><td>" << saf_cell(s.saf_regions, n) << "</td><td>"
       << saf_cell(s.saf_regions_sided, n) << "</td><td>" << saf_cell(s.saf_regions_lateral, n) << "</td></tr>\n";
   h << "</table>\n<p class=\"muted\">The SAF map compares each point with its mirror point, so a left/right pair of "
@@ -798,44 +835,57 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
        "region is where the asymmetry concentrates";
   if (!s.saf_regions_lateral.empty()) {
     const std::string top = asymmetry::largest_region(s.saf_regions_lateral);
-    h << ": " << E(top) << " (" << fixed(s.saf_regions_lateral.at(top), 3)
+    h << ": " << html_escape(top) << " (" << fixed(s.saf_regions_lateral.at(top), 3)
       << " rad; symmetric phantoms stay at or below 0.001)";
   }
   h << ".</p>\n";
+}
 
+// SAF per configuration and the correspondence-free SAF.
+void saf_configurations_html(std::ostringstream& h, const RunSummary& s) {
   h << "<h2>SAF per configuration</h2>\n<table><tr><th>configuration</th><th>score (rad)</th></tr>\n";
-  for (const auto& [n, v] : s.saf.per_configuration) h << "<tr><td>" << E(n) << "</td><td>" << fixed(v, 4) << "</td></tr>\n";
+  for (const auto& [n, v] : s.saf.per_configuration)
+    h << "<tr><td>" << html_escape(n) << "</td><td>" << fixed(v, 4) << "</td></tr>\n";
   h << "</table>\n<p class=\"muted\">Correspondence-free SAF (secondary): "
-    << (s.saf.correspondence_free >= 0 ? fixed(s.saf.correspondence_free, 4) : "n/a")
-    << " rad.</p>\n";
-  if (!s.srd.twins.empty()) {
-    h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<table><tr><th>landmark</th><th>twin</th><th>twin mismatch (rad)</th>"
-         "<th>handedness (rad)</th></tr>\n";
-    for (const auto& t : s.srd.twins)
-      h << "<tr><td>" << E(t.landmark) << "</td><td>" << E(t.twin) << "</td><td>"
-        << (t.mirror_mismatch >= 0 ? fixed(t.mirror_mismatch, 3) : "n/a") << "</td><td>"
-        << (t.handedness >= 0 ? fixed(t.handedness, 3) : "n/a") << "</td></tr>\n";
-    h << "</table>\n<p class=\"muted\">Signed-angle-field histograms over 5 mm rings around each landmark "
-         "(METHOD.md &sect;6). Twin mismatch compares a landmark with its mirror twin after negating the angles "
-         "(0 = locally mirror-symmetric; Me and Pog with themselves); handedness is the same comparison without "
-         "negating, i.e. how far the descriptor tells the twins apart. It localises asymmetry, it does not grade it "
-         "(on phantoms: symmetric 0.01&ndash;0.03 rad, a modified ramus or body 0.04&ndash;0.18 at its condyle or "
-         "coronoid). Descriptors: srd.json.</p>\n";
-  }
+    << (s.saf.correspondence_free >= 0 ? fixed(s.saf.correspondence_free, 4) : "n/a") << " rad.</p>\n";
+}
 
+// SRD at the landmarks: twin mismatch and handedness (nothing without descriptors).
+void srd_html(std::ostringstream& h, const RunSummary& s) {
+  if (s.srd.twins.empty()) return;
+  h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<table><tr><th>landmark</th><th>twin</th><th>twin mismatch (rad)</th>"
+       "<th>handedness (rad)</th></tr>\n";
+  for (const auto& t : s.srd.twins)
+    h << "<tr><td>" << html_escape(t.landmark) << "</td><td>" << html_escape(t.twin) << "</td><td>"
+      << (t.mirror_mismatch >= 0 ? fixed(t.mirror_mismatch, 3) : "n/a") << "</td><td>"
+      << (t.handedness >= 0 ? fixed(t.handedness, 3) : "n/a") << "</td></tr>\n";
+  h << "</table>\n<p class=\"muted\">Signed-angle-field histograms over 5 mm rings around each landmark "
+       "(METHOD.md &sect;6). Twin mismatch compares a landmark with its mirror twin after negating the angles "
+       "(0 = locally mirror-symmetric; Me and Pog with themselves); handedness is the same comparison without "
+       "negating, i.e. how far the descriptor tells the twins apart. It localises asymmetry, it does not grade it "
+       "(on phantoms: symmetric 0.01&ndash;0.03 rad, a modified ramus or body 0.04&ndash;0.18 at its condyle or "
+       "coronoid). Descriptors: srd.json.</p>\n";
+}
+
+// Segmentation volume, mesh statistics and the symmetry plane.
+void surface_and_plane_html(std::ostringstream& h, const RunSummary& s) {
+  const Plane& pl = s.reference.plane;
   h << "<h2>Surface and plane</h2>\n<table><tr><th>quantity</th><th>value</th></tr>\n"
     << "<tr><td>segmentation volume (mm&sup3;)</td><td>" << fixed(s.seg_volume_mm3, 0) << "</td></tr>\n"
     << "<tr><td>mesh vertices / faces</td><td>" << s.mesh.vertices << " / " << s.mesh.faces << "</td></tr>\n"
     << "<tr><td>mesh area (mm&sup2;) / volume (mm&sup3;)</td><td>" << fixed(s.mesh.area_mm2, 0) << " / "
     << fixed(s.mesh.volume_mm3, 0) << "</td></tr>\n"
     << "<tr><td>closed / genus</td><td>" << (s.mesh.closed ? "yes" : "no") << " / " << s.mesh.genus << "</td></tr>\n"
-    << "<tr><td>plane point (LPS mm)</td><td>" << fixed(s.reference.plane.point[0]) << ", " << fixed(s.reference.plane.point[1])
-    << ", " << fixed(s.reference.plane.point[2]) << "</td></tr>\n"
-    << "<tr><td>plane normal</td><td>" << fixed(s.reference.plane.normal[0], 4) << ", " << fixed(s.reference.plane.normal[1], 4)
-    << ", " << fixed(s.reference.plane.normal[2], 4) << "</td></tr>\n"
+    << "<tr><td>plane point (LPS mm)</td><td>" << fixed(pl.point[0]) << ", " << fixed(pl.point[1]) << ", "
+    << fixed(pl.point[2]) << "</td></tr>\n"
+    << "<tr><td>plane normal</td><td>" << fixed(pl.normal[0], 4) << ", " << fixed(pl.normal[1], 4) << ", "
+    << fixed(pl.normal[2], 4) << "</td></tr>\n"
     << "<tr><td>landmark residual RMS (mm)</td><td>" << fixed(s.reference.rms_landmark_residual_mm) << "</td></tr>\n"
     << "</table>\n";
+}
 
+// The method in one paragraph (details: docs/).
+void methods_html(std::ostringstream& h) {
   h << "<h2>Methods</h2>\n<p>The mandible (lower teeth included) is separated from skull, upper teeth and spine by "
        "a marker-based watershed on the bone's depth and intensity, markers being the deep cores of dense bone, and "
        "identified anatomically (ITK; coarse scans are segmented on interpolated working grids that vote). Its "
@@ -848,11 +898,47 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
        "between gradients of harmonic fields (cotangent Laplacian, Dirichlet disks of 2 mm at landmarks) with its "
        "mirror configuration; the SAF and SRD definitions reconstruct Zhang (NUS, 2014). Details and measured "
        "accuracy: the project's docs/ folder.</p>\n";
+}
+
+// Provenance: command, parameters, timings.
+void provenance_html(std::ostringstream& h, const RunSummary& s) {
+  const auto E = html_escape;
   h << "<h2>Provenance</h2>\n<table><tr><th>item</th><th>value</th></tr>\n";
   h << "<tr><td>command</td><td>" << E(s.command_line) << "</td></tr>\n";
   for (const auto& [k, v] : s.parameters) h << "<tr><td>" << E(k) << "</td><td>" << E(v) << "</td></tr>\n";
   for (const auto& [n, t] : s.timings_s) h << "<tr><td>time: " << E(n) << "</td><td>" << fixed(t, 3) << " s</td></tr>\n";
-  h << "<tr><td>time: total</td><td>" << fixed(s.total_s, 3) << " s</td></tr>\n</table>\n</body></html>\n";
+  h << "<tr><td>time: total</td><td>" << fixed(s.total_s, 3) << " s</td></tr>\n</table>\n";
+}
+
+}  // namespace
+
+// The sections in the order of docs/report.md; a failed run has no headline.
+std::string report_html(const RunSummary& s, const std::vector<std::string>& figures, const std::vector<std::string>& views,
+                        const std::string& views_note) {
+  std::ostringstream h;
+  page_head_html(h);
+  identity_html(h, s);
+  qc_html(h, s);
+  warnings_html(h, s);
+  if (s.qc.status != "fail") {
+    h << "<h2>Headline</h2>\n";
+    headline_html(h, s);
+  }
+  h << viewer_html(s);
+  views_html(h, views, views_note);
+  const QcFigures qc_figures = sort_qc_figures(figures);
+  qc_slices_html(h, qc_figures);
+  landmarks_html(h, s);
+  head_frame_html(h, s, qc_figures.head_frame);
+  bilateral_html(h, s);
+  cranial_html(h, s);
+  regional_html(h, s);
+  saf_configurations_html(h, s);
+  srd_html(h, s);
+  surface_and_plane_html(h, s);
+  methods_html(h);
+  provenance_html(h, s);
+  h << "</body></html>\n";
   return h.str();
 }
 
