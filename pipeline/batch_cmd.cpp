@@ -6,6 +6,7 @@
 #include <spawn.h>
 #include <sys/mman.h>
 #include <sys/syscall.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -25,9 +26,11 @@
 
 #include "core/error.h"
 #include "core/json_text.h"
+#include "core/memory.h"
 #include "pipeline/batch_support.h"
 #include "pipeline/commands.h"
 #include "reports/writers.h"
+#include "threads/threads.h"
 
 extern char** environ;
 namespace fs = std::filesystem;
@@ -39,15 +42,20 @@ const cli::CommandSpec& batch_spec() {
       "batch",
       "Run every study of a folder or a CSV list; write cohort.csv and cohort.html.",
       "SOURCE is a folder whose sub-folders and volume files are the studies (study id = their name), or a CSV file "
-      "with a header and columns id,path (path relative to the CSV's folder or absolute). Each study runs as a "
-      "separate `mandisym run` process into OUT/<id>/ (ids are sanitised into safe folder names), up to --jobs at "
-      "a time. Studies whose OUT/<id>/results.json already exists and parses are skipped (resumable; `run` writes "
-      "results.json last, so an interrupted study never looks complete). A failed study is recorded with its exit "
+      "with a header and columns id,path (path relative to the CSV's folder or absolute) and, optionally, per-study "
+      "run options that override those after `--`: mask (relative like path), label, hu_offset, orientation, series. "
+      "Each study runs as a separate `mandisym run` process into OUT/<id>/ (ids are sanitised into safe folder names), "
+      "up to --jobs at a time, each held to --threads-per-job threads and an equal share of the memory budget. Studies "
+      "whose OUT/<id>/results.json already exists and parses are skipped (resumable; `run` writes results.json last, so "
+      "an interrupted study never looks complete); failed ones are run again. A failed study is recorded with its exit "
       "code and error line (a study killed by a signal as `killed`, one over --study-timeout as `timeout`), and the others "
-      "go on. Ctrl-C stops launching, interrupts the running studies, and still writes the cohort files. Exit code 0 when every study succeeded, 9 when some failed (see cohort.csv), 130 when interrupted.",
+      "go on. Ctrl-C stops launching, interrupts the running studies, and still writes the cohort files. Exit code 0 when "
+      "every study succeeded, 9 when some failed (see cohort.csv), 130 when interrupted.",
       {{"SOURCE", "folder of studies, or CSV with id,path"}},
       {{"output", "DIR", "output folder (created)", ""},
-       {"jobs", "N", "studies run at once (each run also uses its own threads)", "1"},
+       {"jobs", "N|auto", "studies run at once; auto = as many as the cores allow while 2 x the largest peak memory "
+                          "measured so far fits the memory budget per study (the first study runs alone)", "1"},
+       {"threads-per-job", "T", "threads of each study's run (--threads of `run`)", "the cores / --jobs, at least 1", 1, 1024},
        {"deidentify", "", "pass --deidentify to every run; study ids become pseudonyms (keyed by OUT/.deidentify-key) and "
                           "error lines and logs are scrubbed of paths, UIDs and dates", ""},
        {"study-timeout", "SECONDS", "kill a study's process group when it has run this long and record it as `timeout`; "
@@ -55,7 +63,10 @@ const cli::CommandSpec& batch_spec() {
        {"aggregate-only", "", "run nothing: write the cohort files from the studies already in OUT (e.g. after a "
                               "Snakemake or cluster run); incomplete studies are listed as failed with their log's error", ""},
        {"quiet", "", "no progress output", ""},
-       {"help", "", "show this help", ""}}};
+       {"help", "", "show this help", ""}},
+      "options for every study's `mandisym run`, e.g. -- --hu-offset -1000 --orientation LPS; checked before any "
+      "study starts and recorded per study in cohort.csv (`options`). -o, --threads and --deidentify belong to batch "
+      "(OUT, --threads-per-job, --deidentify)."};
   return s;
 }
 
@@ -75,7 +86,25 @@ struct Study {
   int signal = 0;                  // the signal that ended it (killed, timeout), else 0
   std::string error;
   double seconds = -1;  // wall-clock of its run; < 0: not run here
+  long peak_kb = -1;    // peak resident memory of its run (wait4's ru_maxrss); < 0: not run here
+  std::vector<std::string> options;  // its own run options (CSV columns), after batch's `--` options
+  std::string run_options;           // the options its run was given (cohort.csv `options`; scrubbed under --deidentify)
 };
+
+// CSV columns that give a study its own run option: column -> option. Paths
+// (mask) are relative to the CSV's folder, as `path` is.
+const std::pair<const char*, const char*> kStudyOptionColumns[] = {
+    {"mask", "--mask"}, {"label", "--label"}, {"hu_offset", "--hu-offset"}, {"orientation", "--orientation"}, {"series", "--series"}};
+
+// --jobs auto: studies run at once only while this many times the largest
+// peak resident memory measured so far, per study, fits the memory budget
+// (core/memory.h). 2: the peak of a run grows with the scan (4.3 floats per
+// voxel, docs/ingest.md), and the next study may be up to twice as large as
+// the largest so far before the sum overruns the budget.
+constexpr double kAutoJobsPeakMargin = 2.0;
+
+// The options every study's run gets from batch itself; refused after `--`.
+const char* const kBatchOwnedRunOptions[] = {"output", "threads", "deidentify", "help"};
 
 std::string safe_id(std::string s) {
   for (char& c : s)
@@ -148,6 +177,13 @@ std::vector<Study> list_studies(const std::string& source) {
       st.name = id;
       st.id = safe_id(id);
       st.path = p.string();
+      for (const auto& [column, option] : kStudyOptionColumns) {
+        const long c = col(column);
+        if (c < 0 || static_cast<long>(v.size()) <= c || v[static_cast<std::size_t>(c)].empty()) continue;
+        std::string value = v[static_cast<std::size_t>(c)];
+        if (std::string(column) == "mask" && fs::path(value).is_relative()) value = (src.parent_path() / value).string();
+        st.options.insert(st.options.end(), {option, value});
+      }
       out.push_back(st);
     }
   } else {
@@ -155,6 +191,41 @@ std::vector<Study> list_studies(const std::string& source) {
   }
   if (out.empty()) throw Error(ExitCode::InputInvalid, source + ": no studies found");
   return out;
+}
+
+// `run`'s arguments for a study: batch's `--` options, then the study's own;
+// parsed and checked as `run` checks them (the input and OUT are stand-ins).
+cli::Args study_run_args(const std::vector<std::string>& common, const std::vector<std::string>& own) {
+  std::vector<std::string> argv = {"INPUT", "-o", "OUT"};
+  argv.insert(argv.end(), common.begin(), common.end());
+  argv.insert(argv.end(), own.begin(), own.end());
+  const cli::Args a = cli::parse(run_spec(), argv);
+  check_run_options(a);
+  return a;
+}
+
+// Refuses, before any study starts, run options that `run` would refuse or
+// that batch sets itself: batch's `--` options, then each study's own.
+void check_run_options_of(const std::vector<Study>& studies, const std::vector<std::string>& common) {
+  try {
+    const cli::Args a = study_run_args(common, {});
+    for (const char* owned : kBatchOwnedRunOptions)
+      if (a.has(owned) && std::string(owned) != "output")
+        throw Error(ExitCode::Usage, std::string("--") + owned + " is set by batch itself (see mandisym batch --help)");
+    for (const auto& w : common)
+      if (w == "-o" || w == "--output" || w.rfind("--output=", 0) == 0)
+        throw Error(ExitCode::Usage, "-o is set by batch itself (OUT/<id>)");
+  } catch (const Error& e) {
+    throw Error(ExitCode::Usage, std::string("batch: run options after --: ") + e.what());
+  }
+  for (const Study& s : studies) {
+    if (s.options.empty()) continue;
+    try {
+      study_run_args(common, s.options);
+    } catch (const Error& e) {
+      throw Error(ExitCode::InputInvalid, "batch: study " + s.name + ": its CSV options: " + e.what());
+    }
+  }
 }
 
 // Unique ids: a repeated id gets _2, _3, ...
@@ -225,13 +296,35 @@ struct Child {
   std::chrono::steady_clock::time_point term_sent;
 };
 
+// What every study's run gets: the binary, OUT, and the options batch sets.
+struct LaunchPlan {
+  std::string exe;
+  fs::path out;
+  bool deidentify = false;
+  std::vector<std::string> common;  // the options after batch's `--`
+  int threads = 1;                  // --threads of each run
+  std::uint64_t memory_share = 0;   // --max-memory of each run when `--` sets none; 0: run's default
+};
+
+// `run`'s command line for study s.
+std::vector<std::string> run_command_line(const Study& s, const LaunchPlan& plan) {
+  std::vector<std::string> a = {plan.exe, "run", s.path, "-o", (plan.out / s.id).string(), "-q", "--threads", std::to_string(plan.threads)};
+  if (plan.memory_share > 0) a.insert(a.end(), {"--max-memory", std::to_string(plan.memory_share)});
+  if (plan.deidentify) a.push_back("--deidentify");
+  a.insert(a.end(), plan.common.begin(), plan.common.end());
+  a.insert(a.end(), s.options.begin(), s.options.end());
+  return a;
+}
+
 // Starts `mandisym run` for a study in its own process group; its output goes
 // to a memfd (nothing that names the study reaches the disk before scrubbing).
-bool launch(Study& s, const std::string& exe, const fs::path& out, bool deidentify, pid_t* pid, int* log_fd) {
+bool launch(Study& s, const LaunchPlan& plan, pid_t* pid, int* log_fd) {
   *log_fd = static_cast<int>(::syscall(SYS_memfd_create, "mandisym-study-log", MFD_CLOEXEC));
   if (*log_fd < 0) return false;
-  std::vector<std::string> a = {exe, "run", s.path, "-o", (out / s.id).string(), "-q"};
-  if (deidentify) a.push_back("--deidentify");
+  std::vector<std::string> a = run_command_line(s, plan);
+  s.run_options.clear();
+  for (std::size_t k = 6; k < a.size(); ++k) s.run_options += (k > 6 ? " " : "") + a[k];  // after `run INPUT -o DIR -q`
+  if (plan.deidentify) s.run_options = bs::scrub(s.run_options, bs::identifying_strings(s.path, s.name), s.id);
   std::vector<char*> argv;
   for (auto& x : a) argv.push_back(x.data());
   argv.push_back(nullptr);
@@ -243,7 +336,7 @@ bool launch(Study& s, const std::string& exe, const fs::path& out, bool deidenti
   posix_spawnattr_init(&at);
   posix_spawnattr_setflags(&at, POSIX_SPAWN_SETPGROUP);  // its own group: a timeout kills it and its children
   posix_spawnattr_setpgroup(&at, 0);
-  const int rc = posix_spawn(pid, exe.c_str(), &fa, &at, argv.data(), environ);
+  const int rc = posix_spawn(pid, plan.exe.c_str(), &fa, &at, argv.data(), environ);
   posix_spawn_file_actions_destroy(&fa);
   posix_spawnattr_destroy(&at);
   if (rc != 0) ::close(*log_fd), *log_fd = -1;
@@ -349,37 +442,81 @@ std::string histogram_svg(const std::vector<double>& v, const std::string& title
   return o.str();
 }
 
-// Runs the studies not done yet, --jobs at a time, each under its timeout
-// (--study-timeout; default from its size, batch_support.h).
-void run_studies(std::vector<Study>& studies, const cli::Args& args, const fs::path& out, std::size_t todo) {
-  const int jobs = static_cast<int>(args.number("jobs", 1));
-  const bool quiet = args.has("quiet"), deidentify = args.has("deidentify");
+// How many studies run at once and with how many threads each (docs/batch.md,
+// "Jobs and threads"). A fixed --jobs N: N at once, each with
+// --threads-per-job or cores / N threads. --jobs auto: the first study runs
+// alone with every core; after that, as many as the cores allow while
+// kAutoJobsPeakMargin x the largest peak resident memory measured so far, per
+// study, fits the memory budget.
+struct JobPolicy {
+  bool automatic = false;
+  int fixed_jobs = 1;
+  int fixed_threads = 0;  // 0: cores / jobs
+  int cores = 1;
+  std::uint64_t budget_bytes = 0;  // default_memory_budget_bytes(); 0: unknown
+  long largest_peak_kb = -1;       // over the studies finished so far
+
+  int jobs() const {
+    if (!automatic) return fixed_jobs;
+    if (largest_peak_kb <= 0) return 1;
+    if (budget_bytes == 0) return cores;
+    const double per_job = kAutoJobsPeakMargin * static_cast<double>(largest_peak_kb) * 1024.0;
+    return std::clamp(static_cast<int>(static_cast<double>(budget_bytes) / per_job), 1, cores);
+  }
+  int threads() const { return fixed_threads > 0 ? fixed_threads : std::max(1, cores / jobs()); }
+};
+
+JobPolicy job_policy(const cli::Args& args) {
+  JobPolicy p;
+  p.cores = threads::available_cores();
+  p.budget_bytes = default_memory_budget_bytes();
+  p.automatic = args.get("jobs", "1") == "auto";
+  if (!p.automatic) {
+    const double jobs = args.number_in("jobs", 1, 1, 256, "");
+    if (jobs != std::floor(jobs)) throw Error(ExitCode::Usage, "--jobs: expected a whole number or auto");
+    p.fixed_jobs = static_cast<int>(jobs);
+  }
+  if (args.has("threads-per-job")) p.fixed_threads = static_cast<int>(args.ranged("threads-per-job", 1, ""));
+  return p;
+}
+
+// One progress line ("[###...] 3/10 studies, 2 running, ...").
+void print_progress(std::size_t done, std::size_t todo, std::size_t running, double elapsed_s, bool tty) {
+  const double eta = done ? elapsed_s / static_cast<double>(done) * static_cast<double>(todo - done) : 0;
+  char b[160];
+  const int width = 30, fill = todo ? static_cast<int>(width * done / todo) : width;
+  std::snprintf(b, sizeof b, "[%s%s] %zu/%zu studies, %zu running, elapsed %.0f s, ETA %.0f s", std::string(fill, '#').c_str(),
+                std::string(width - fill, '.').c_str(), done, todo, running, elapsed_s, eta);
+  if (tty) std::cout << "\r" << b << std::flush;
+  else std::cout << b << "\n";
+}
+
+// Runs the studies not done yet, as many at a time as the job policy says,
+// each under its timeout (--study-timeout; default from its size,
+// batch_support.h).
+void run_studies(std::vector<Study>& studies, const cli::Args& args, LaunchPlan plan, std::size_t todo) {
+  JobPolicy policy = job_policy(args);
+  const bool quiet = args.has("quiet");
+  const bool own_memory_option = !plan.common.empty() && study_run_args(plan.common, {}).has("max-memory");
   const double fixed_timeout = args.number("study-timeout", -1);
-  const std::string exe = self_exe();
   const bool tty = !quiet && isatty(STDOUT_FILENO);
   const auto t0 = std::chrono::steady_clock::now();
   std::size_t next = 0, done = 0;
   std::map<pid_t, Child> running;
-  auto progress = [&] {
-    if (quiet) return;
-    const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const double eta = done ? el / static_cast<double>(done) * static_cast<double>(todo - done) : 0;
-    char b[160];
-    const int width = 30, fill = todo ? static_cast<int>(width * done / todo) : width;
-    std::snprintf(b, sizeof b, "[%s%s] %zu/%zu studies, %zu running, elapsed %.0f s, ETA %.0f s", std::string(fill, '#').c_str(),
-                  std::string(width - fill, '.').c_str(), done, todo, running.size(), el, eta);
-    if (tty) std::cout << "\r" << b << std::flush;
-    else std::cout << b << "\n";
+  const auto progress = [&] {
+    if (!quiet) print_progress(done, todo, running.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), tty);
   };
   progress();
   while (true) {
-    while (!g_interrupted && static_cast<int>(running.size()) < jobs && next < studies.size()) {
+    while (!g_interrupted && static_cast<int>(running.size()) < policy.jobs() && next < studies.size()) {
       Study& s = studies[next++];
       if (s.status == "done-earlier") continue;
+      plan.threads = policy.threads();
+      plan.memory_share = own_memory_option || policy.budget_bytes == 0 ? 0 : policy.budget_bytes / static_cast<std::uint64_t>(policy.jobs());
       pid_t pid = -1;
       int fd = -1;
-      if (!launch(s, exe, out, deidentify, &pid, &fd)) {
-        s.status = "failed", s.error = "cannot start " + exe, ++done;
+      if (!launch(s, plan, &pid, &fd)) {
+        s.status = "failed", s.error = "cannot start " + plan.exe, ++done;
         continue;
       }
       Child c;
@@ -391,7 +528,8 @@ void run_studies(std::vector<Study>& studies, const cli::Args& args, const fs::p
     }
     if (running.empty()) break;
     int st = 0;
-    const pid_t pid = waitpid(-1, &st, WNOHANG);
+    rusage ru{};
+    const pid_t pid = ::wait4(-1, &st, WNOHANG, &ru);
     if (pid == 0 || (pid < 0 && errno == EINTR)) {
       police(running);
       ::usleep(50 * 1000);  // 50 ms: the timeout's resolution
@@ -401,7 +539,10 @@ void run_studies(std::vector<Study>& studies, const cli::Args& args, const fs::p
     auto it = running.find(pid);
     if (it == running.end()) continue;
     if (it->second.timed_out || it->second.interrupted) ::kill(-pid, SIGKILL);  // what it left in its group
-    finish(studies[it->second.study], it->second, st, out, deidentify);
+    Study& s = studies[it->second.study];
+    finish(s, it->second, st, plan.out, plan.deidentify);
+    s.peak_kb = ru.ru_maxrss;
+    policy.largest_peak_kb = std::max(policy.largest_peak_kb, s.peak_kb);
     running.erase(it);
     ++done;
     progress();
@@ -416,13 +557,14 @@ void write_cohort_csv(const std::vector<Study>& studies, const std::vector<std::
                       const std::vector<std::vector<std::string>>& rows, const fs::path& out) {
   std::ostringstream csv;
   const auto q = reports::csv_quote;
-  csv << "id,status,exit_code,error,signal,seconds";
+  csv << "id,status,exit_code,error,signal,seconds,peak_memory_mb,options";
   for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << hcols[c];  // skip study,status
   csv << "\n";
   for (std::size_t i = 0; i < studies.size(); ++i) {
     const Study& s = studies[i];
     csv << q(s.id) << "," << q(s.status) << "," << exit_code_text(s) << "," << q(s.error) << ","
-        << (s.signal ? std::to_string(s.signal) : "") << "," << (s.seconds >= 0 ? fmt(s.seconds, 1) : "");
+        << (s.signal ? std::to_string(s.signal) : "") << "," << (s.seconds >= 0 ? fmt(s.seconds, 1) : "") << ","
+        << (s.peak_kb > 0 ? fmt(static_cast<double>(s.peak_kb) * 1024.0 / 1e6, 0) : "") << "," << q(s.run_options);
     for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << (c < rows[i].size() ? rows[i][c] : "");
     csv << "\n";
   }
@@ -491,12 +633,12 @@ void write_cohort_html(const std::vector<Study>& studies, const std::vector<std:
 int batch_command(const cli::Args& args) {
   const std::string out_s = args.get("output");
   if (out_s.empty()) throw Error(ExitCode::Usage, "batch: -o OUT is required");
-  const int jobs = static_cast<int>(args.number("jobs", 1));
-  if (jobs < 1 || jobs > 256) throw Error(ExitCode::Usage, "batch: --jobs must be 1..256");
+  (void)job_policy(args);  // --jobs and --threads-per-job checked before anything starts
   if (args.number("study-timeout", 0) < 0) throw Error(ExitCode::Usage, "batch: --study-timeout must be >= 0 seconds (0 = none)");
   const bool quiet = args.has("quiet");
   const fs::path out = out_s;
   std::vector<Study> studies = list_studies(args.positional.at(0));
+  check_run_options_of(studies, args.passthrough);
   std::error_code ec;
   fs::create_directories(out / ".logs", ec);
   if (ec) throw Error(ExitCode::OutputFailed, out.string() + ": cannot create the output folder: " + ec.message());
@@ -517,7 +659,14 @@ int batch_command(const cli::Args& args) {
     if (complete(out / s.id)) s.status = "done-earlier", s.exit_code = 0;
     else if (aggregate_only) record_unfinished(s, out);
     else ++todo;
-  if (!aggregate_only) run_studies(studies, args, out, todo);
+  if (!aggregate_only) {
+    LaunchPlan plan;
+    plan.exe = self_exe();
+    plan.out = out;
+    plan.deidentify = args.has("deidentify");
+    plan.common = args.passthrough;
+    run_studies(studies, args, plan, todo);
+  }
   for (auto& s : studies)
     if (s.status == "pending") s.status = "not run (interrupted)";
 

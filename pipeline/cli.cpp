@@ -63,6 +63,11 @@ Args parse(const CommandSpec& spec, const std::vector<std::string>& argv) {
     if (!std::isnan(o.lo)) a.ranges[o.name] = {o.lo, o.hi};
   for (std::size_t i = 0; i < argv.size(); ++i) {
     const std::string& s = argv[i];
+    if (s == "--") {
+      if (spec.passthrough.empty()) throw Error(ExitCode::Usage, spec.name + ": unexpected '--' (see mandisym " + spec.name + " --help)");
+      a.passthrough.assign(argv.begin() + static_cast<std::ptrdiff_t>(i) + 1, argv.end());
+      break;
+    }
     if (s.size() > 1 && s[0] == '-' && !(s.size() > 1 && (std::isdigit(static_cast<unsigned char>(s[1])) || s[1] == '.'))) {
       std::string name = s.substr(s[1] == '-' ? 2 : 1);
       std::string inline_value;
@@ -104,7 +109,7 @@ std::string help(const CommandSpec& spec) {
   std::ostringstream o;
   o << "mandisym " << spec.name;
   for (const auto& [n, h] : spec.arguments) o << " " << n;
-  o << " [options]\n\n  " << spec.synopsis << "\n\n";
+  o << " [options]" << (spec.passthrough.empty() ? "" : " [-- OPTIONS...]") << "\n\n  " << spec.synopsis << "\n\n";
   if (!spec.description.empty()) o << spec.description << "\n\n";
   if (!spec.arguments.empty()) {
     o << "Arguments:\n";
@@ -120,6 +125,7 @@ std::string help(const CommandSpec& spec) {
     if (!std::isnan(opt.lo)) o << " [" << opt.lo << " to " << opt.hi << "]";
     o << "\n";
   }
+  if (!spec.passthrough.empty()) o << "\n  -- OPTIONS...\n      " << spec.passthrough << "\n";
   return o.str();
 }
 

@@ -29,11 +29,15 @@ struct CommandSpec {
   std::string description;  // paragraph
   std::vector<std::pair<std::string, std::string>> arguments;  // name, help
   std::vector<OptionSpec> options;
+  // Words after a lone "--" are kept in Args::passthrough (e.g. `batch`'s run
+  // options) and this says what they are for --help; empty: "--" is refused.
+  std::string passthrough = "";
 };
 
 class Args {
  public:
   std::vector<std::string> positional;
+  std::vector<std::string> passthrough;  // after "--" (CommandSpec::passthrough)
   std::map<std::string, std::string> values;  // flags map to "1"
   bool has(const std::string& n) const { return values.count(n) > 0; }
   std::string get(const std::string& n, const std::string& def = "") const;

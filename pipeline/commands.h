@@ -23,4 +23,9 @@ int batch_command(const cli::Args& args);
 
 const char* version();
 
+// Checks run's option values (ranges, combinations) as `run` would before
+// reading anything; throws ms::Error(Usage) naming the option. `batch` calls
+// it on the options it passes to every study.
+void check_run_options(const cli::Args& args);
+
 }  // namespace ms::pipeline

@@ -27,6 +27,7 @@
 #include "reports/render.h"
 #include "pipeline/commands.h"
 #include "pipeline/cranial.h"
+#include "threads/threads.h"
 #include "pipeline/staging.h"
 #include "liblog/library_log.h"
 #include "reference/reference.h"
@@ -71,6 +72,7 @@ const cli::CommandSpec& run_spec() {
        {"no-cranial", "", "do not fit the cranial mid-sagittal plane (bone above the condyles)", ""},
        {"deidentify", "", "leave out of every output the DICOM strings that can identify a study: UIDs, dates, "
                           "descriptions, the input path", ""},
+       {"threads", "N", "threads this run may use (OpenMP, ITK, VTK); `batch` sets it per study; 0 = all", "0 (the cores this process may use)", 0, 1024},
        {"quiet", "", "print nothing but errors", ""},
        {"help", "", "show this help", ""}}};
   return s;
@@ -290,7 +292,7 @@ std::future<reference::CranialResult> start_cranial(const Volume& ct, const segm
   ci.mandible_plane = S.reference.plane;
   ci.landmarks = S.landmarks.landmarks;
   ci.mandible_surface = &mesh;
-  return std::async(std::launch::async, [ci] { return fit_cranial_plane(ci); });
+  return std::async(threads::side_task_launch(), [ci] { return fit_cranial_plane(ci); });
 }
 
 // Per-vertex maps the outputs carry beside the summary.
@@ -452,12 +454,18 @@ int qc_exit(const reports::RunSummary& S, const std::string& input, const std::s
 
 }  // namespace
 
+void check_run_options(const cli::Args& args) {
+  (void)run_settings(args);
+  (void)args.ranged("threads", 0, "threads");
+}
+
 int run_command(const cli::Args& args, const std::string& command_line) {
   const auto t_start = std::chrono::steady_clock::now();
   const std::string input = args.positional.at(0);
   const std::string outdir = args.get("output");
   if (outdir.empty()) throw Error(ExitCode::Usage, "run: -o OUTDIR is required");
   const RunSettings rs = run_settings(args);
+  threads::set_budget(static_cast<int>(args.ranged("threads", 0, "threads")));
   const bool quiet = args.has("quiet"), deidentify = args.has("deidentify"), figures_on = !args.has("no-figures");
   reports::RunSummary S;
   S.tool_version = version();
@@ -483,7 +491,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   try {
     seg = segment_stage(scan.volume, rs, args, S);
     progress.stage("segment", 2);
-    mask_outputs = std::async(std::launch::async, [&scan, &seg, &staging, figures_on] {
+    mask_outputs = std::async(threads::side_task_launch(), [&scan, &seg, &staging, figures_on] {
       io::write_mask(seg.mask, staging.path("mandible_mask.nii.gz"));
       return figures_on ? reports::write_qc_slices(scan.volume, seg.mask, staging.path("qc")) : std::vector<std::string>{};
     });

@@ -16,6 +16,7 @@
 
 #include "core/debug_lap.h"
 #include "core/error.h"
+#include "threads/threads.h"
 
 // The atlas compiled into the binary (generated from modules/atlas/mandible_atlas.bin).
 extern const unsigned char kMandibleAtlasData[];
@@ -617,7 +618,7 @@ Fit fit_ct(const Volume& ct, double bone_hu) {
     omp_set_num_threads(before);
     return out;
   };
-  std::future<Fit> of_mirror = std::async(std::launch::async, fit_field, &s);
+  std::future<Fit> of_mirror = std::async(threads::side_task_launch(), fit_field, &s);
   const Fit direct = fit_field(nullptr);
   Fit r = combine_mirror_fits(direct, of_mirror.get(), s);
   lap("bone fraction and fit, scan and mirror");

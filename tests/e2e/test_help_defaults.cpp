@@ -147,6 +147,7 @@ TEST(HelpDefaults, RunShowsTheOptionsStructsDefaults) {
       words("label", "the only label", true, "run: no --label is label -1"),
       words("saf-anchors", "reference", true, "run: RunSettings::anchors"),
       words("close-handles", "auto", true, "run: surface::Options::close_handles_auto set by run_settings"),
+      words("threads", "0 (the cores this process may use)", true, "run: threads::set_budget(0) = available_cores()"),
   });
 }
 

@@ -916,6 +916,62 @@ TEST(EndToEnd, BatchRunsEveryStudyRecordsFailuresAndResumes) {
 
 namespace {
 
+// Invariance: the thread budget (`run --threads`, set per study by `batch`)
+// changes the speed, never the numbers.
+TEST(EndToEnd, ThreadCountDoesNotChangeTheNumbers) {
+  const fs::path in = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom" / "ramus_L_plus4mm" / "dicom";
+  const fs::path one = temp_dir("threads_1"), three = temp_dir("threads_3");
+  std::string err;
+  ASSERT_EQ(run("run " + in.string() + " -o " + one.string() + " -q --no-figures --threads 1", &err), 0) << err;
+  ASSERT_EQ(run("run " + in.string() + " -o " + three.string() + " -q --no-figures --threads 3", &err), 0) << err;
+  const Value a = load(one / "results.json"), b = load(three / "results.json");
+  for (const char* block : {"segmentation", "qc", "mesh", "landmarks", "symmetry_plane", "cranial_plane", "reference_configuration", "landmark_asymmetry_mm", "scores"})
+    if (a.contains(block)) EXPECT_EQ(ms::dump_json(a.at(block)), ms::dump_json(b.at(block))) << block;
+  for (const auto& d : {one, three}) fs::remove_all(d);
+}
+
+// `batch SRC -o OUT -- RUN OPTIONS`: the options after `--` reach every
+// study's run, a CSV's per-study columns override them, and cohort.csv records
+// what each study was given; bad options are refused before any study starts.
+TEST(EndToEnd, BatchPassesRunOptionsAndCsvColumnsOverrideThem) {
+  const fs::path src = temp_dir("batchopt_src"), out = temp_dir("batchopt_out");
+  const fs::path samples = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
+  fs::create_directories(src);
+  fs::create_directory_symlink(samples / "symmetric" / "dicom", src / "sym");
+  fs::create_directory_symlink(samples / "ramus_L_plus4mm" / "dicom", src / "ramus4");
+  std::ofstream(src / "list.csv") << "id,path,hu_offset,orientation\nsym,sym,,\nramus4,ramus4,5,\n";
+  const std::string list = (src / "list.csv").string();
+  std::string err;
+  // Refused before anything runs: unknown or batch-owned options, bad values.
+  for (const std::string bad : {"-- --bogus 1", "-- --threads 3", "-- -o elsewhere", "-- --bone-threshold 99999", "--jobs 1.5",
+                                "--jobs 0", "--threads-per-job 0", "-- extra_argument"})
+    EXPECT_EQ(run("batch " + list + " -o " + out.string() + " -q " + bad, &err), 2) << bad << ": " << err;
+  EXPECT_FALSE(fs::exists(out / "sym")) << "a study ran despite bad options";
+  std::ofstream(src / "bad.csv") << "id,path,label\nsym,sym,3\n";  // --label without --mask
+  EXPECT_EQ(run("batch " + (src / "bad.csv").string() + " -o " + out.string() + " -q", &err), 4) << err;
+  EXPECT_NE(err.find("study sym"), std::string::npos) << err;
+
+  ASSERT_EQ(run("batch " + list + " -o " + out.string() + " -q --jobs auto -- --bone-threshold 260 --no-figures", &err), 0) << err;
+  const Value sym = load(out / "sym" / "results.json"), ramus = load(out / "ramus4" / "results.json");
+  EXPECT_EQ(sym.at("parameters").at("bone_threshold_hu").get<double>(), 260);
+  EXPECT_EQ(sym.at("parameters").at("hu_offset").get<double>(), 0);
+  EXPECT_EQ(ramus.at("parameters").at("bone_threshold_hu").get<double>(), 260);
+  EXPECT_EQ(ramus.at("parameters").at("hu_offset").get<double>(), 5);
+  EXPECT_TRUE(fs::is_empty(out / "sym" / "qc")) << "--no-figures did not reach the run";
+  std::ifstream f(out / "cohort.csv");
+  std::string header, row1, row2;
+  std::getline(f, header), std::getline(f, row1), std::getline(f, row2);
+  EXPECT_EQ(header.rfind("id,status,exit_code,error,signal,seconds,peak_memory_mb,options,", 0), 0u) << header;
+  EXPECT_NE(row1.find("--bone-threshold 260 --no-figures\""), std::string::npos) << row1;
+  EXPECT_NE(row2.find("--bone-threshold 260 --no-figures --hu-offset 5\""), std::string::npos) << row2;
+  EXPECT_NE(row1.find("--threads "), std::string::npos) << row1;
+  for (const auto& d : {src, out}) fs::remove_all(d);
+}
+
+}  // namespace
+
+namespace {
+
 // Every number of a results.json by its path ("scores.saf.score",
 // "landmarks.Co_L[0]"), booleans and strings left out.
 void numbers_of(const Value& v, const std::string& path, std::map<std::string, double>& out) {
