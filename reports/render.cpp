@@ -21,6 +21,7 @@
 #include <vtkWindowToImageFilter.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -60,46 +61,33 @@ Ptr<vtkLookupTable> lookup(const ColourMap& c) {
   return lut;
 }
 
-}  // namespace
+// The surface with per-vertex normals, its mapper and actor; each view set
+// only swaps the scalars and colours of `shaded`.
+struct SurfaceActor {
+  Ptr<vtkPolyData> shaded;
+  Ptr<vtkPolyDataMapper> mapper;
+  Ptr<vtkActor> actor;
+};
 
-std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<ViewSet>& sets, const LandmarkSet& landmarks,
-                                            const Plane& plane, int width, int height, const Vec3& superior) {
-  std::vector<RenderedViews> all(sets.size());
-  auto fail = [&](const std::string& why) {
-    for (auto& o : all) {
-      for (const auto& f : o.files) std::filesystem::remove(f);
-      o.files.clear();
-      o.error = why;
-    }
-    return all;
-  };
-  if (sets.empty()) return all;
-  if (mesh.faces.empty()) return fail("no surface to render");
-  {
-    std::string why;
-    if (!ensure_display(&why)) return fail(why);
-  }
-
-  // Geometry and normals once; each set only swaps the scalars and colours.
-  auto pd = surface::to_polydata(mesh);
+SurfaceActor surface_actor(vtkPolyData* pd) {
   auto normals = Ptr<vtkPolyDataNormals>::New();
   normals->SetInputData(pd);
   normals->SplittingOff();
   normals->ConsistencyOff();  // the mesh is already outward
   normals->Update();
-  vtkSmartPointer<vtkPolyData> shaded = normals->GetOutput();
-  auto mapper = Ptr<vtkPolyDataMapper>::New();
-  mapper->SetInputData(shaded);
-  auto actor = Ptr<vtkActor>::New();
-  actor->SetMapper(mapper);
-  actor->GetProperty()->SetColor(0.93, 0.89, 0.80);
-  actor->GetProperty()->SetSpecular(0.15);
+  SurfaceActor s;
+  s.shaded = normals->GetOutput();
+  s.mapper = Ptr<vtkPolyDataMapper>::New();
+  s.mapper->SetInputData(s.shaded);
+  s.actor = Ptr<vtkActor>::New();
+  s.actor->SetMapper(s.mapper);
+  s.actor->GetProperty()->SetColor(0.93, 0.89, 0.80);
+  s.actor->GetProperty()->SetSpecular(0.15);
+  return s;
+}
 
-  auto ren = Ptr<vtkRenderer>::New();
-  ren->SetBackground(1, 1, 1);
-  ren->AddActor(actor);
-
-  // Landmarks.
+// Landmarks as green spheres.
+void add_landmarks(vtkRenderer* ren, const LandmarkSet& landmarks) {
   for (const auto& [name, p] : landmarks.points) {
     auto s = Ptr<vtkSphereSource>::New();
     s->SetCenter(p[0], p[1], p[2]);
@@ -113,33 +101,45 @@ std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<
     a->GetProperty()->SetColor(0.1, 0.55, 0.2);
     ren->AddActor(a);
   }
+}
 
-  // Frame of the symmetry plane; the view directions follow it, so a posed
-  // head is shown upright.
+// Where the cameras look from: the symmetry plane's frame (so a posed head is
+// shown upright), the centre and size of the mesh's bounding box.
+struct Framing {
+  Vec3 ml, si, ap;  // medio-lateral (plane normal), superior, posterior
+  Vec3 centre;
+  double size = 0;
+};
+
+Framing framing(const Mesh& mesh, vtkPolyData* pd, const Plane& plane, const Vec3& superior) {
   const PlaneFrame frame = plane_frame(mesh, plane, superior);  // shared with the interactive viewer
-  const Vec3 ml = frame.x, si = frame.y, ap = -1.0 * frame.z;  // ap: posterior
   double b[6];
   pd->GetBounds(b);
-  const Vec3 c{(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2};
-  const double size = std::max({b[1] - b[0], b[3] - b[2], b[5] - b[4]});
-  auto plane_actor = Ptr<vtkActor>::New();
-  {
-    // The plane as a translucent sheet through the mesh centre's projection.
-    const Vec3 o = c - plane.signed_distance(c) * ml;
-    Vec3 p0 = o - 0.6 * size * ap - 0.5 * size * si;
-    Vec3 p1 = o + 0.6 * size * ap - 0.5 * size * si;
-    Vec3 p2 = o - 0.6 * size * ap + 0.5 * size * si;
-    auto ps = Ptr<vtkPlaneSource>::New();
-    ps->SetOrigin(p0.data());
-    ps->SetPoint1(p1.data());
-    ps->SetPoint2(p2.data());
-    auto m = Ptr<vtkPolyDataMapper>::New();
-    m->SetInputConnection(ps->GetOutputPort());
-    plane_actor->SetMapper(m);
-    plane_actor->GetProperty()->SetColor(0.35, 0.45, 0.65);
-    plane_actor->GetProperty()->SetOpacity(0.18);
-    ren->AddActor(plane_actor);
-  }
+  return {frame.x, frame.y, -1.0 * frame.z, Vec3{(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2},
+          std::max({b[1] - b[0], b[3] - b[2], b[5] - b[4]})};
+}
+
+// The plane as a translucent sheet through the mesh centre's projection.
+Ptr<vtkActor> plane_sheet(const Framing& f, const Plane& plane) {
+  const Vec3 o = f.centre - plane.signed_distance(f.centre) * f.ml;
+  Vec3 p0 = o - 0.6 * f.size * f.ap - 0.5 * f.size * f.si;
+  Vec3 p1 = o + 0.6 * f.size * f.ap - 0.5 * f.size * f.si;
+  Vec3 p2 = o - 0.6 * f.size * f.ap + 0.5 * f.size * f.si;
+  auto ps = Ptr<vtkPlaneSource>::New();
+  ps->SetOrigin(p0.data());
+  ps->SetPoint1(p1.data());
+  ps->SetPoint2(p2.data());
+  auto m = Ptr<vtkPolyDataMapper>::New();
+  m->SetInputConnection(ps->GetOutputPort());
+  auto sheet = Ptr<vtkActor>::New();
+  sheet->SetMapper(m);
+  sheet->GetProperty()->SetColor(0.35, 0.45, 0.65);
+  sheet->GetProperty()->SetOpacity(0.18);
+  return sheet;
+}
+
+// The horizontal colour bar under the surface.
+Ptr<vtkScalarBarActor> colour_bar() {
   auto bar = Ptr<vtkScalarBarActor>::New();
   bar->SetNumberOfLabels(5);
   bar->SetLabelFormat("%.2g");
@@ -154,67 +154,120 @@ std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<
     tp->ItalicOff();
     tp->BoldOff();
   }
-  ren->AddActor2D(bar);
+  return bar;
+}
 
-  // One window (one OpenGL context, shaders compiled once) for every set.
+// One offscreen window (one OpenGL context, shaders compiled once) for every set.
+Ptr<vtkRenderWindow> offscreen_window(vtkRenderer* ren, int width, int height) {
   auto win = Ptr<vtkRenderWindow>::New();
   win->SetOffScreenRendering(1);
   win->AddRenderer(ren);
   win->SetSize(width, height);
   win->SetMultiSamples(0);  // FXAA instead: multisampling costs most of a software-rendered frame
   ren->UseFXAAOn();
+  return win;
+}
 
-  struct View {
-    const char* name;
-    Vec3 eye;  // direction from the centre to the camera
-    Vec3 up;
-    bool plane;  // the plane is seen edge-on from the front and below only
-  };
-  const Vec3 anterior = -1.0 * ap, inferior = -1.0 * si;
-  const View views[] = {
-      {"front", anterior, si, true}, {"below", inferior, anterior, true}, {"left", ml, si, false}, {"right", -1.0 * ml, si, false}};
+// Colours the surface by the set's values (uncoloured, without a bar, when
+// there is not one value per vertex).
+void apply_colours(const SurfaceActor& surface, vtkScalarBarActor* bar, const ViewSet& set, std::size_t vertices) {
+  const bool coloured = set.values && set.values->size() == vertices;
+  const auto lut = lookup(set.colours);
+  if (coloured) {
+    auto arr = Ptr<vtkDoubleArray>::New();
+    arr->SetName("value");
+    for (double x : *set.values) arr->InsertNextValue(std::isfinite(x) ? x : 0.0);
+    surface.shaded->GetPointData()->SetScalars(arr);
+    surface.mapper->SetLookupTable(lut);
+    surface.mapper->SetScalarRange(set.colours.lo, set.colours.hi);
+    surface.mapper->UseLookupTableScalarRangeOn();
+    surface.mapper->SetScalarModeToUsePointData();
+    surface.mapper->ScalarVisibilityOn();
+    bar->SetLookupTable(lut);
+    bar->SetTitle(set.colours.title.c_str());
+  } else {
+    surface.mapper->ScalarVisibilityOff();
+  }
+  bar->SetVisibility(coloured);
+  surface.shaded->Modified();
+}
+
+struct View {
+  const char* name;
+  Vec3 eye;  // direction from the centre to the camera
+  Vec3 up;
+  bool plane;  // the plane is seen edge-on from the front and below only
+};
+
+std::array<View, 4> views_of(const Framing& f) {
+  const Vec3 anterior = -1.0 * f.ap, inferior = -1.0 * f.si;
+  return {View{"front", anterior, f.si, true}, View{"below", inferior, anterior, true}, View{"left", f.ml, f.si, false},
+          View{"right", -1.0 * f.ml, f.si, false}};
+}
+
+// Renders one view and writes it as a PNG; false when the file could not be written.
+bool render_view(vtkRenderer* ren, vtkRenderWindow* win, const Framing& f, const View& v, const std::string& file) {
+  auto* cam = ren->GetActiveCamera();
+  cam->SetFocalPoint(f.centre[0], f.centre[1], f.centre[2]);
+  const Vec3 pos = f.centre + (3.0 * f.size) * v.eye;
+  cam->SetPosition(pos[0], pos[1], pos[2]);
+  cam->SetViewUp(v.up[0], v.up[1], v.up[2]);
+  cam->SetViewAngle(30);
+  ren->ResetCamera();
+  cam->Zoom(1.25);
+  win->Render();
+  auto grab = Ptr<vtkWindowToImageFilter>::New();
+  grab->SetInput(win);
+  grab->ReadFrontBufferOff();
+  grab->Update();
+  auto png = Ptr<vtkPNGWriter>::New();
+  png->SetFileName(file.c_str());
+  png->SetInputConnection(grab->GetOutputPort());
+  png->Write();
+  return png->GetErrorCode() == 0 && std::filesystem::exists(file);
+}
+
+// Every result failed with `why`; files already written are removed.
+std::vector<RenderedViews> failed(std::vector<RenderedViews> all, const std::string& why) {
+  for (auto& o : all) {
+    for (const auto& f : o.files) std::filesystem::remove(f);
+    o.files.clear();
+    o.error = why;
+  }
+  return all;
+}
+
+}  // namespace
+
+// The scene is built once (surface, landmarks, plane sheet, colour bar, one
+// window); each set then recolours the surface and renders the four views.
+std::vector<RenderedViews> render_view_sets(const Mesh& mesh, const std::vector<ViewSet>& sets, const LandmarkSet& landmarks,
+                                            const Plane& plane, int width, int height, const Vec3& superior) {
+  std::vector<RenderedViews> all(sets.size());
+  if (sets.empty()) return all;
+  if (mesh.faces.empty()) return failed(std::move(all), "no surface to render");
+  std::string why;
+  if (!ensure_display(&why)) return failed(std::move(all), why);
+
+  auto pd = surface::to_polydata(mesh);
+  const SurfaceActor surface = surface_actor(pd);
+  auto ren = Ptr<vtkRenderer>::New();
+  ren->SetBackground(1, 1, 1);
+  ren->AddActor(surface.actor);
+  add_landmarks(ren, landmarks);
+  const Framing f = framing(mesh, pd, plane, superior);
+  const auto sheet = plane_sheet(f, plane);
+  ren->AddActor(sheet);
+  const auto bar = colour_bar();
+  ren->AddActor2D(bar);
+  const auto win = offscreen_window(ren, width, height);
+
   for (std::size_t k = 0; k < sets.size(); ++k) {
-    const ViewSet& set = sets[k];
-    const bool coloured = set.values && set.values->size() == mesh.vertices.size();
-    const auto lut = lookup(set.colours);
-    if (coloured) {
-      auto arr = Ptr<vtkDoubleArray>::New();
-      arr->SetName("value");
-      for (double x : *set.values) arr->InsertNextValue(std::isfinite(x) ? x : 0.0);
-      shaded->GetPointData()->SetScalars(arr);
-      mapper->SetLookupTable(lut);
-      mapper->SetScalarRange(set.colours.lo, set.colours.hi);
-      mapper->UseLookupTableScalarRangeOn();
-      mapper->SetScalarModeToUsePointData();
-      mapper->ScalarVisibilityOn();
-      bar->SetLookupTable(lut);
-      bar->SetTitle(set.colours.title.c_str());
-    } else {
-      mapper->ScalarVisibilityOff();
-    }
-    bar->SetVisibility(coloured);
-    shaded->Modified();
-    for (const View& v : views) {
-      plane_actor->SetVisibility(v.plane);
-      auto* cam = ren->GetActiveCamera();
-      cam->SetFocalPoint(c[0], c[1], c[2]);
-      const Vec3 pos = c + (3.0 * size) * v.eye;
-      cam->SetPosition(pos[0], pos[1], pos[2]);
-      cam->SetViewUp(v.up[0], v.up[1], v.up[2]);
-      cam->SetViewAngle(30);
-      ren->ResetCamera();
-      cam->Zoom(1.25);
-      win->Render();
-      auto grab = Ptr<vtkWindowToImageFilter>::New();
-      grab->SetInput(win);
-      grab->ReadFrontBufferOff();
-      grab->Update();
-      const std::string file = set.prefix + "_" + v.name + ".png";
-      auto png = Ptr<vtkPNGWriter>::New();
-      png->SetFileName(file.c_str());
-      png->SetInputConnection(grab->GetOutputPort());
-      png->Write();
-      if (png->GetErrorCode() != 0 || !std::filesystem::exists(file)) return fail("cannot write " + file);
+    apply_colours(surface, bar, sets[k], mesh.vertices.size());
+    for (const View& v : views_of(f)) {
+      sheet->SetVisibility(v.plane);
+      const std::string file = sets[k].prefix + "_" + v.name + ".png";
+      if (!render_view(ren, win, f, v, file)) return failed(std::move(all), "cannot write " + file);
       all[k].files.push_back(file);
     }
   }
