@@ -23,9 +23,9 @@ Geometry geometry_of(const ImageT* img) {
   return g;
 }
 
-// A new ITK image on the grid g, allocated and zero-filled.
+// A new ITK image on the grid g, nothing allocated.
 template <class ImageT>
-typename ImageT::Pointer make_image(const Geometry& g) {
+typename ImageT::Pointer make_image_header(const Geometry& g) {
   auto img = ImageT::New();
   typename ImageT::RegionType region;
   typename ImageT::SizeType size;
@@ -44,8 +44,23 @@ typename ImageT::Pointer make_image(const Geometry& g) {
   img->SetSpacing(spacing);
   img->SetOrigin(origin);
   img->SetDirection(dir);
+  return img;
+}
+
+// A new ITK image on the grid g, allocated and zero-filled.
+template <class ImageT>
+typename ImageT::Pointer make_image(const Geometry& g) {
+  auto img = make_image_header<ImageT>(g);
   img->Allocate();
   img->FillBuffer(0);
+  return img;
+}
+
+// An ITK image over v's voxels, without a copy: ITK filters read v.hu in
+// place (v must outlive the image and its filters; none may write to it).
+inline itk::Image<float, 3>::Pointer float_view(const Volume& v) {
+  auto img = make_image_header<itk::Image<float, 3>>(v.geom);
+  img->GetPixelContainer()->SetImportPointer(const_cast<float*>(v.hu.data()), v.hu.size(), /*LetContainerManageMemory=*/false);
   return img;
 }
 

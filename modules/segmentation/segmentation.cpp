@@ -3,6 +3,7 @@
 #include "segmentation/atlas_zone.h"
 #include "segmentation/voxel_ops.h"
 
+#include <itkBinShrinkImageFilter.h>
 #include <itkImage.h>
 #include <itkRegionOfInterestImageFilter.h>
 
@@ -1431,30 +1432,21 @@ static Result finalize(const Volume& ct, const Options& opt, const MaskImage::Re
 }
 
 // Mean of each f[0] x f[1] x f[2] block of ct (trailing partial blocks
-// dropped), on a grid whose voxel I is centred on its block.
+// dropped), on a grid whose voxel I is centred on its block: ITK's
+// BinShrinkImageFilter over ct's voxels in place (bit-identical to the loop it
+// replaced and 2x faster: bench/resampling_vs_itk.cpp).
 Volume bin_average(const Volume& ct, const std::array<unsigned, 3>& f) {
-  const Geometry& g = ct.geom;
+  auto shrink = itk::BinShrinkImageFilter<FloatImage, FloatImage>::New();
+  itk::BinShrinkImageFilter<FloatImage, FloatImage>::ShrinkFactorsType factors;
+  for (unsigned a = 0; a < 3; ++a) factors[a] = f[a];
+  shrink->SetInput(io::float_view(ct));
+  shrink->SetShrinkFactors(factors);
+  shrink->Update();
+  const FloatImage* out = shrink->GetOutput();
   Volume coarse;
-  coarse.geom = g;
-  for (int a = 0; a < 3; ++a) {
-    coarse.geom.size[a] = g.size[a] / f[a];
-    coarse.geom.spacing[a] = g.spacing[a] * f[a];
-  }
-  // Bin centre of coarse voxel 0 sits at full index (f - 1) / 2.
-  coarse.geom.origin = g.index_to_lps(0.5 * (f[0] - 1), 0.5 * (f[1] - 1), 0.5 * (f[2] - 1));
-  coarse.hu.assign(coarse.geom.voxel_count(), 0.0f);
-  const double inv = 1.0 / (f[0] * f[1] * f[2]);
-  const long cz = static_cast<long>(coarse.geom.size[2]);
-#pragma omp parallel for schedule(static)
-  for (long K = 0; K < cz; ++K)
-    for (std::size_t J = 0; J < coarse.geom.size[1]; ++J)
-      for (std::size_t I = 0; I < coarse.geom.size[0]; ++I) {
-        double acc = 0;
-        for (unsigned dk = 0; dk < f[2]; ++dk)
-          for (unsigned dj = 0; dj < f[1]; ++dj)
-            for (unsigned di = 0; di < f[0]; ++di) acc += ct.hu[g.linear(I * f[0] + di, J * f[1] + dj, K * f[2] + dk)];
-        coarse.hu[coarse.geom.linear(I, J, static_cast<std::size_t>(K))] = static_cast<float>(acc * inv);
-      }
+  coarse.geom = io::geometry_of(out);
+  const float* p = out->GetBufferPointer();
+  coarse.hu.assign(p, p + coarse.geom.voxel_count());
   return coarse;
 }
 
