@@ -153,241 +153,386 @@ RunData resolve(const std::string& input, const fs::path& out, const std::string
 }
 
 using reports::fixed;
+using reports::html_escape;
 
-}  // namespace
+// ---- Read inputs ----------------------------------------------------------
 
-int compare_command(const cli::Args& args) {
+struct CompareOptions {
+  fs::path out;
+  bool quiet = false;
+  std::string transfer_mode;  // auto | always | off
+};
+
+// The options, checked, and the output folder (with qc/) created.
+CompareOptions compare_options(const cli::Args& args) {
   const std::string out_s = args.get("output");
   if (out_s.empty()) throw Error(ExitCode::Usage, "compare: -o DIR is required");
   if (args.positional.size() != 2) throw Error(ExitCode::Usage, "compare: needs PRE and POST");
-  const bool quiet = args.has("quiet");
-  const std::string transfer_mode = args.get("transfer-landmarks", "auto");
-  if (transfer_mode != "auto" && transfer_mode != "always" && transfer_mode != "off")
+  CompareOptions o{out_s, args.has("quiet"), args.get("transfer-landmarks", "auto")};
+  if (o.transfer_mode != "auto" && o.transfer_mode != "always" && o.transfer_mode != "off")
     throw Error(ExitCode::Usage, "compare: --transfer-landmarks must be auto, always or off");
-  const fs::path out = out_s;
   std::error_code ec;
-  fs::create_directories(out / "qc", ec);
-  if (ec) throw Error(ExitCode::OutputFailed, out.string() + ": cannot create the output folder: " + ec.message());
+  fs::create_directories(o.out / "qc", ec);
+  if (ec) throw Error(ExitCode::OutputFailed, o.out.string() + ": cannot create the output folder: " + ec.message());
+  return o;
+}
 
-  const RunData pre = resolve(args.positional[0], out, "pre", quiet);
-  const RunData post = resolve(args.positional[1], out, "post", quiet);
-  // Same patient, in order? Warnings on stderr (also under --quiet: they say
-  // the comparison may be meaningless) and in compare.json.
-  const compare_checks::Consistency cons = compare_checks::check_consistency(
+// ---- Checks ---------------------------------------------------------------
+
+// Same patient, in order? Warnings on stderr (also under --quiet: they say
+// the comparison may be meaningless); compare.json carries them too.
+compare_checks::Consistency check_pair(const RunData& pre, const RunData& post) {
+  compare_checks::Consistency cons = compare_checks::check_consistency(
       {pre.results, pre.mesh, pre.landmarks, (pre.dir / "results.json").string()},
       {post.results, post.mesh, post.landmarks, (post.dir / "results.json").string()});
   for (const auto& w : cons.warnings) std::cerr << "mandisym: warning: " << w << std::endl;
+  return cons;
+}
 
-  // Align POST to PRE and measure the change.
-  const auto al = reference::align_rigid(post.mesh, pre.mesh, post.landmarks, pre.landmarks);
-  Mesh aligned = post.mesh;
-  for (auto& v : aligned.vertices) v = al.transform.apply(v);
+// ---- Align ----------------------------------------------------------------
 
-  // Landmark transfer PRE -> POST where POST's detection is uncertain.
-  std::vector<descriptors::LandmarkTransfer> transfers;
-  if (transfer_mode != "off")
-    transfers = descriptors::transfer_landmarks(pre.mesh, pre.landmarks, post.mesh, post.landmarks, al.transform.inverse());
-  LandmarkSet post_lm = post.landmarks;  // detected, with the transferred ones in their place
-  std::vector<std::string> transferred_names;
-  for (auto& t : transfers) {
-    if (transfer_mode == "always" && t.registered && !t.used) {
-      t.used = true;
-      t.reason = "--transfer-landmarks always (" + t.reason + ")";
-    }
-    if (!t.used) continue;
-    post_lm.set(t.name, t.transferred);
-    transferred_names.push_back(t.name);
-  }
-  LandmarkSet aligned_lm;
-  for (const auto& [name, p] : post_lm.points) aligned_lm.set(name, al.transform.apply(p));
+// POST aligned to PRE, and the change: signed distance of each aligned POST
+// vertex to PRE's surface (+ outside), with area-weighted statistics like the
+// mirror distance of a run.
+struct Alignment {
+  reference::AlignResult fit;
+  double rotation_deg = 0;
+  Mesh aligned;
+  std::vector<double> change_mm;
+  asymmetry::DistanceStats change;
+};
+
+Alignment align_post(const RunData& pre, const RunData& post) {
+  Alignment a;
+  a.fit = reference::align_rigid(post.mesh, pre.mesh, post.landmarks, pre.landmarks);
+  const auto& R = a.fit.transform.R;
+  a.rotation_deg = std::acos(std::clamp((R[0] + R[4] + R[8] - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
+  a.aligned = post.mesh;
+  for (auto& v : a.aligned.vertices) v = a.fit.transform.apply(v);
   const geometry::ClosestPointIndex pre_index(pre.mesh);
   const auto pre_normals = geometry::face_normals(pre.mesh);
-  std::vector<double> change(aligned.vertices.size());
-  for (std::size_t i = 0; i < change.size(); ++i) change[i] = geometry::signed_distance(pre_index, pre_normals, aligned.vertices[i]);
-  surface::write_vtp(aligned, {{"change_mm", change}}, (out / "post_aligned.vtp").string());
-  // Area-weighted, like the mirror-distance statistics of a run.
-  const asymmetry::DistanceStats cs = asymmetry::distance_stats(change, asymmetry::vertex_areas(aligned));
-  const double mean_abs = cs.mean_abs, p95 = cs.p95, max_out = cs.max_outward, max_in = cs.max_inward;
-  const double angle = std::acos(std::clamp((al.transform.R[0] + al.transform.R[4] + al.transform.R[8] - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
+  a.change_mm.resize(a.aligned.vertices.size());
+  for (std::size_t i = 0; i < a.change_mm.size(); ++i)
+    a.change_mm[i] = geometry::signed_distance(pre_index, pre_normals, a.aligned.vertices[i]);
+  a.change = asymmetry::distance_stats(a.change_mm, asymmetry::vertex_areas(a.aligned));
+  return a;
+}
 
-  // Scores side by side.
+// PRE's landmarks carried onto POST where POST's detection is uncertain
+// (--transfer-landmarks), and POST's landmarks with the used ones in place.
+struct Transfer {
+  std::vector<descriptors::LandmarkTransfer> landmarks;  // one per PRE landmark (none when off)
+  LandmarkSet post_landmarks;                           // detected, transferred ones in their place
+  std::vector<std::string> used;                        // names transferred
+};
+
+Transfer transfer_from_pre(const RunData& pre, const RunData& post, const reference::RigidTransform& post_to_pre,
+                          const std::string& mode) {
+  Transfer t;
+  if (mode != "off")
+    t.landmarks = descriptors::transfer_landmarks(pre.mesh, pre.landmarks, post.mesh, post.landmarks, post_to_pre.inverse());
+  t.post_landmarks = post.landmarks;
+  for (auto& x : t.landmarks) {
+    if (mode == "always" && x.registered && !x.used) {
+      x.used = true;
+      x.reason = "--transfer-landmarks always (" + x.reason + ")";
+    }
+    if (!x.used) continue;
+    t.post_landmarks.set(x.name, x.transferred);
+    t.used.push_back(x.name);
+  }
+  return t;
+}
+
+// ---- Score table ----------------------------------------------------------
+
+// A value read from PRE and POST; ok = false where a run has none.
+struct PrePost {
+  bool pre_ok = false, post_ok = false;
+  double pre = 0, post = 0;
+};
+
+PrePost pre_post(const RunData& pre, const RunData& post, const std::vector<std::string>& path) {
+  PrePost v;
+  v.pre = score(pre, path, &v.pre_ok);
+  v.post = score(post, path, &v.post_ok);
+  return v;
+}
+
+struct ScoreLine {
+  ScoreRow row;
+  PrePost value;
+};
+
+// SRD per landmark: how far the descriptor moved (same fields, no mirroring)
+// and each scan's mismatch with the mirror twin.
+struct SrdLine {
+  std::string landmark;
+  double distance_rad = -1;  // < 0: not computable
+  PrePost mismatch;
+};
+struct SrdComparison {
+  bool comparable = false;  // both runs have SRD with the same number of bins
+  std::vector<SrdLine> lines;
+};
+
+// The bilateral L−R differences with POST measured on the landmarks used.
+struct BilateralLine {
+  std::string measure;
+  bool has_pre = false;
+  double pre = 0, post = 0;
+};
+
+// What compare puts side by side.
+struct Tables {
+  std::vector<ScoreLine> scores;
+  SrdComparison srd;
+  std::vector<BilateralLine> bilateral;  // only when landmarks were transferred
+};
+
+SrdComparison srd_comparison(const RunData& pre, const RunData& post) {
+  SrdComparison c;
+  c.comparable = pre.srd_bins > 0 && pre.srd_bins == post.srd_bins;
+  if (!c.comparable) return c;
+  for (const auto& [name, a] : pre.srd) {
+    const auto it = post.srd.find(name);
+    if (it == post.srd.end()) continue;
+    c.lines.push_back({name, asymmetry::srd_distance(a, it->second, pre.srd_bins), pre_post(pre, post, srd_mismatch_path(name))});
+  }
+  return c;
+}
+
+// Each run measured itself on its own detections; with landmarks replaced,
+// POST's bilateral numbers are measured again on the landmarks used.
+std::vector<BilateralLine> bilateral_with_transfers(const RunData& pre, const RunData& post, const Transfer& t) {
+  std::vector<BilateralLine> lines;
+  if (t.used.empty()) return lines;
+  const auto pre_b = asymmetry::bilateral_measures(pre.landmarks, pre.plane);
+  for (const auto& [m, b] : asymmetry::bilateral_measures(t.post_landmarks, post.plane)) {
+    const auto it = pre_b.find(m);
+    lines.push_back({m, it != pre_b.end(), it != pre_b.end() ? it->second.diff : 0.0, b.diff});
+  }
+  return lines;
+}
+
+Tables score_tables(const RunData& pre, const RunData& post, const Transfer& t) {
+  Tables tables;
+  for (const auto& r : score_rows()) tables.scores.push_back({r, pre_post(pre, post, r.path)});
+  tables.srd = srd_comparison(pre, post);
+  tables.bilateral = bilateral_with_transfers(pre, post, t);
+  return tables;
+}
+
+// ---- Write outputs --------------------------------------------------------
+
+// post_aligned.vtp and the change views (aligned POST, PRE's plane, the landmarks used).
+reports::RenderedViews write_change_surface(const fs::path& out, const Alignment& a, const Transfer& t, const Plane& pre_plane) {
+  surface::write_vtp(a.aligned, {{"change_mm", a.change_mm}}, (out / "post_aligned.vtp").string());
+  LandmarkSet aligned_lm;
+  for (const auto& [name, p] : t.post_landmarks.points) aligned_lm.set(name, a.fit.transform.apply(p));
+  return reports::render_views(a.aligned, a.change_mm, reports::ColourMap{"change post - pre (mm)", -5.0, 5.0, true},
+                               aligned_lm, pre_plane, (out / "qc" / "view_change").string());
+}
+
+std::vector<std::string> compare_warnings(const reports::RenderedViews& rv, const Alignment& a,
+                                          const compare_checks::Consistency& cons) {
+  std::vector<std::string> w;
+  if (!rv.error.empty()) w.push_back("3D views not rendered: " + rv.error);
+  if (a.fit.landmark_pairs < 3) w.push_back("fewer than 3 common landmarks: alignment started from the centroids");
+  w.insert(w.end(), cons.warnings.begin(), cons.warnings.end());
+  return w;
+}
+
+Json value_or_null(bool ok, double v) { return ok ? Json(v) : Json(); }
+
+// compare.json `alignment` and `change`.
+Json alignment_json(const Alignment& a) {
+  Json j = Json::object();
+  j["landmark_pairs"] = static_cast<double>(a.fit.landmark_pairs);
+  j["rms_mm"] = a.fit.rms_mm;
+  j["rotation_deg"] = a.rotation_deg;
+  j["translation_mm"] = norm(a.fit.transform.t);
+  return j;
+}
+Json change_json(const Alignment& a) {
+  Json j = Json::object();
+  j["mean_abs_mm"] = a.change.mean_abs;
+  j["p95_mm"] = a.change.p95;
+  j["max_outward_mm"] = a.change.max_outward;
+  j["max_inward_mm"] = a.change.max_inward;
+  return j;
+}
+
+// compare.json `scores`: stable keys, each with pre, post, change and the display label.
+Json scores_json(const std::vector<ScoreLine>& lines) {
+  Json j = Json::object();
+  for (const auto& [r, v] : lines) {
+    Json e = Json::object();
+    e["pre"] = value_or_null(v.pre_ok, v.pre);
+    e["post"] = value_or_null(v.post_ok, v.post);
+    e["change"] = value_or_null(v.pre_ok && v.post_ok, v.post - v.pre);
+    e["label"] = r.label;
+    j[r.key] = e;
+  }
+  return j;
+}
+
+// compare.json `srd`.
+Json srd_json(const SrdComparison& srd) {
+  Json j = Json::object();
+  for (const auto& l : srd.lines) {
+    Json e = Json::object();
+    e["pre_post_distance_rad"] = value_or_null(l.distance_rad >= 0, l.distance_rad);
+    e["mirror_mismatch_pre_rad"] = value_or_null(l.mismatch.pre_ok, l.mismatch.pre);
+    e["mirror_mismatch_post_rad"] = value_or_null(l.mismatch.post_ok, l.mismatch.post);
+    j[l.landmark] = e;
+  }
+  return j;
+}
+
+// compare.json `landmark_transfer`.
+Json transfer_json(const Transfer& t) {
+  Json j = Json::object();
+  for (const auto& x : t.landmarks) {
+    Json e = Json::object();
+    e["detected"] = x.detected;
+    e["registered"] = x.registered;
+    e["used"] = x.used;
+    e["overlap"] = x.overlap;
+    e["patch_rms_mm"] = x.rms_mm;
+    e["inliers"] = static_cast<double>(x.inliers);
+    e["disagreement_mm"] = value_or_null(x.disagreement_mm >= 0, x.disagreement_mm);
+    Json pt = Json::array();
+    for (double c : x.transferred) pt.push_back(Json(c));
+    e["transferred"] = x.registered ? pt : Json();
+    e["reason"] = x.reason;
+    j[x.name] = e;
+  }
+  return j;
+}
+
+// compare.json `bilateral_with_transferred_landmarks`.
+Json bilateral_json(const std::vector<BilateralLine>& lines) {
+  Json j = Json::object();
+  for (const auto& l : lines) {
+    Json e = Json::object();
+    e["pre"] = value_or_null(l.has_pre, l.pre);
+    e["post"] = l.post;
+    e["change"] = value_or_null(l.has_pre, l.post - l.pre);
+    j[l.measure] = e;
+  }
+  return j;
+}
+
+Json compare_json(const RunData& pre, const RunData& post, const Alignment& a, const Transfer& t, const Tables& tables,
+                  const std::vector<std::string>& warnings, const compare_checks::Consistency& cons) {
   Json cj = Json::object();
   cj["schema_version"] = "1.1";  // 1.1: stable `scores` keys, `tool`
   cj["tool"]["name"] = "mandisym";
   cj["tool"]["version"] = version();
   cj["pre"] = pre.dir.string();
   cj["post"] = post.dir.string();
-  Json alj = Json::object();
-  alj["landmark_pairs"] = static_cast<double>(al.landmark_pairs);
-  alj["rms_mm"] = al.rms_mm;
-  alj["rotation_deg"] = angle;
-  alj["translation_mm"] = norm(al.transform.t);
-  cj["alignment"] = alj;
-  Json ch = Json::object();
-  ch["mean_abs_mm"] = mean_abs;
-  ch["p95_mm"] = p95;
-  ch["max_outward_mm"] = max_out;
-  ch["max_inward_mm"] = max_in;
-  cj["change"] = ch;
-  const std::vector<ScoreRow> rows = score_rows();
-  Json sj = Json::object();
-  std::ostringstream table;
-  table << "<table><tr><th>score</th><th>pre</th><th>post</th><th>change</th></tr>\n";
-  for (const auto& r : rows) {
-    bool ok1 = false, ok2 = false;
-    const double a = score(pre, r.path, &ok1), b = score(post, r.path, &ok2);
-    Json e = Json::object();
-    e["pre"] = ok1 ? Json(a) : Json();
-    e["post"] = ok2 ? Json(b) : Json();
-    e["change"] = ok1 && ok2 ? Json(b - a) : Json();
-    e["label"] = r.label;
-    sj[r.key] = e;
-    table << "<tr><td>" << reports::html_escape(r.label) << "</td><td>" << (ok1 ? fixed(a, r.prec) : "n/a") << "</td><td>"
-          << (ok2 ? fixed(b, r.prec) : "n/a") << "</td><td>" << (ok1 && ok2 ? fixed(b - a, r.prec) : "n/a") << "</td></tr>\n";
-  }
-  table << "</table>\n";
-  cj["scores"] = sj;
-
-  // SRD per landmark: how far the descriptor moved (same fields, no mirroring)
-  // and each scan's mismatch with the mirror twin.
-  Json srdj = Json::object();
-  std::ostringstream srd_table;
-  if (pre.srd_bins > 0 && pre.srd_bins == post.srd_bins) {
-    srd_table << "<table><tr><th>landmark</th><th>descriptor change pre&rarr;post (rad)</th><th>twin mismatch pre</th>"
-                 "<th>twin mismatch post</th></tr>\n";
-    for (const auto& [name, a] : pre.srd) {
-      const auto it = post.srd.find(name);
-      if (it == post.srd.end()) continue;
-      const double d = asymmetry::srd_distance(a, it->second, pre.srd_bins);
-      bool ok1 = false, ok2 = false;
-      const double m1 = score(pre, srd_mismatch_path(name), &ok1);
-      const double m2 = score(post, srd_mismatch_path(name), &ok2);
-      Json e = Json::object();
-      e["pre_post_distance_rad"] = d >= 0 ? Json(d) : Json();
-      e["mirror_mismatch_pre_rad"] = ok1 ? Json(m1) : Json();
-      e["mirror_mismatch_post_rad"] = ok2 ? Json(m2) : Json();
-      srdj[name] = e;
-      srd_table << "<tr><td>" << reports::html_escape(name) << "</td><td>" << (d >= 0 ? fixed(d, 3) : "n/a") << "</td><td>"
-                << (ok1 ? fixed(m1, 3) : "&ndash;") << "</td><td>" << (ok2 ? fixed(m2, 3) : "&ndash;") << "</td></tr>\n";
-    }
-    srd_table << "</table>\n";
-  }
-  cj["srd"] = srdj;
-
-  // Transfers, and POST's bilateral measurements on the landmarks used.
-  Json tj = Json::object();
-  std::ostringstream transfer_table;
-  if (!transfers.empty()) {
-    transfer_table << "<table><tr><th>landmark</th><th>detected on post</th><th>registered</th><th>overlap</th>"
-                      "<th>detected &harr; transferred (mm)</th><th>used</th><th>why</th></tr>\n";
-    for (const auto& t : transfers) {
-      Json e = Json::object();
-      e["detected"] = t.detected;
-      e["registered"] = t.registered;
-      e["used"] = t.used;
-      e["overlap"] = t.overlap;
-      e["patch_rms_mm"] = t.rms_mm;
-      e["inliers"] = static_cast<double>(t.inliers);
-      e["disagreement_mm"] = t.disagreement_mm >= 0 ? Json(t.disagreement_mm) : Json();
-      Json pt = Json::array();
-      for (double x : t.transferred) pt.push_back(Json(x));
-      e["transferred"] = t.registered ? pt : Json();
-      e["reason"] = t.reason;
-      tj[t.name] = e;
-      transfer_table << "<tr><td>" << reports::html_escape(t.name) << "</td><td>" << (t.detected ? "yes" : "no")
-                     << "</td><td>" << (t.registered ? "yes" : "no") << "</td><td>" << fixed(100 * t.overlap, 0)
-                     << " %</td><td>" << (t.disagreement_mm >= 0 ? fixed(t.disagreement_mm, 1) : "&ndash;") << "</td><td>"
-                     << (t.used ? "<b>transferred</b>" : "detected") << "</td><td>" << reports::html_escape(t.reason)
-                     << "</td></tr>\n";
-    }
-    transfer_table << "</table>\n";
-  }
-  cj["landmark_transfer"] = tj;
+  cj["alignment"] = alignment_json(a);
+  cj["change"] = change_json(a);
+  cj["scores"] = scores_json(tables.scores);
+  cj["srd"] = srd_json(tables.srd);
+  cj["landmark_transfer"] = transfer_json(t);
   cj["landmarks_transferred"] = Json::array();
-  for (const auto& n : transferred_names) cj["landmarks_transferred"].push_back(Json(n));
-  std::ostringstream bil_table;
-  if (!transferred_names.empty()) {
-    // Each run measured itself on its own detections; with landmarks replaced,
-    // POST's bilateral numbers are measured again on the landmarks used.
-    const auto pre_b = asymmetry::bilateral_measures(pre.landmarks, pre.plane);
-    const auto post_b = asymmetry::bilateral_measures(post_lm, post.plane);
-    Json bj = Json::object();
-    bil_table << "<table><tr><th>L&minus;R</th><th>pre</th><th>post (with transferred landmarks)</th><th>change</th></tr>\n";
-    for (const auto& [m, b] : post_b) {
-      const auto it = pre_b.find(m);
-      Json e = Json::object();
-      e["pre"] = it != pre_b.end() ? Json(it->second.diff) : Json();
-      e["post"] = b.diff;
-      e["change"] = it != pre_b.end() ? Json(b.diff - it->second.diff) : Json();
-      bj[m] = e;
-      bil_table << "<tr><td>" << reports::html_escape(m) << "</td><td>" << (it != pre_b.end() ? fixed(it->second.diff) : "n/a")
-                << "</td><td>" << fixed(b.diff) << "</td><td>" << (it != pre_b.end() ? fixed(b.diff - it->second.diff) : "n/a")
-                << "</td></tr>\n";
-    }
-    bil_table << "</table>\n";
-    cj["bilateral_with_transferred_landmarks"] = bj;
-  }
-
-  // Figures: the change map on the aligned POST surface, PRE's plane.
-  const auto rv = reports::render_views(aligned, change, reports::ColourMap{"change post - pre (mm)", -5.0, 5.0, true},
-                                        aligned_lm, pre.plane, (out / "qc" / "view_change").string());
+  for (const auto& n : t.used) cj["landmarks_transferred"].push_back(Json(n));
+  if (!t.used.empty()) cj["bilateral_with_transferred_landmarks"] = bilateral_json(tables.bilateral);
   cj["warnings"] = Json::array();
-  if (!rv.error.empty()) cj["warnings"].push_back(Json("3D views not rendered: " + rv.error));
-  if (al.landmark_pairs < 3) cj["warnings"].push_back(Json("fewer than 3 common landmarks: alignment started from the centroids"));
-  for (const auto& w : cons.warnings) cj["warnings"].push_back(Json(w));
+  for (const auto& w : warnings) cj["warnings"].push_back(Json(w));
   cj["warning_details"] = cons.details;
   cj["consistency"] = cons.block;
+  return cj;
+}
 
-  std::ostringstream h;
-  h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym pre/post comparison</title>"
-       "<style>body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#1d2433;padding:0 1em}"
-       "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #dde3ec;padding:.3em .7em;text-align:right}"
-       "td:first-child,th:first-child{text-align:left}th{background:#f2f5fa}.muted{color:#5a6475;font-size:.9em}"
-       ".views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views img{width:100%;border:1px solid #dde3ec}"
-       ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}</style></head><body>\n"
-    << "<h1>Pre/post comparison</h1>\n<p class=\"muted\">MandiSym " << reports::html_escape(version())
-    << " &middot; pre: " << reports::html_escape(pre.dir.filename().string()) << " &middot; post: "
-    << reports::html_escape(post.dir.filename().string()) << "</p>\n";
-  for (std::size_t i = 0; i < cj["warnings"].size(); ++i)
-    h << "<div class=\"warn\">&#9888; " << reports::html_escape(cj["warnings"][i].get<std::string>()) << "</div>\n";
-  h << "<h2>Scores</h2>\n" << table.str()
-    << "<p class=\"muted\">change = post &minus; pre. Each scan's scores are measured on its own surface and symmetry "
-       "plane; see each run's report.html for details.</p>\n"
-    << "<h2>Surface change (post aligned to pre)</h2>\n<p>Mean |change| " << fixed(mean_abs) << " mm, 95th percentile "
-    << fixed(p95) << " mm, largest outward " << fixed(max_out) << " mm, inward " << fixed(max_in) << " mm. Alignment: "
-    << al.landmark_pairs << " common landmarks, then ICP; rotation " << fixed(angle) << "&deg;, translation "
-    << fixed(norm(al.transform.t)) << " mm, residual (closest half) " << fixed(al.rms_mm) << " mm.</p>\n";
-  if (!transfer_table.str().empty()) {
-    h << "<h2>Landmarks on post</h2>\n<p class=\"muted\">Each landmark's 25 mm neighbourhood on pre registered to post "
-         "(Improved Spin Image matching, RANSAC, ICP; docs/descriptors.md). A landmark is transferred when post's own "
-         "detection is missing or lies more than 3 mm from where its registered neighbourhood puts it (a plate, an "
-         "osteotomy);";
-    h << (transferred_names.empty() ? " none was." : " transferred here: ");
-    for (std::size_t i = 0; i < transferred_names.size(); ++i) h << (i ? ", " : "") << reports::html_escape(transferred_names[i]);
-    h << "</p>\n" << transfer_table.str();
-    if (!transferred_names.empty())
-      h << "<p>Bilateral differences with post measured on the landmarks used:</p>\n" << bil_table.str()
-        << "<p class=\"muted\">The score table above keeps each run's own numbers (post's from its detected "
-           "landmarks).</p>\n";
-  }
-  if (!srd_table.str().empty())
-    h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<p class=\"muted\">Signed-angle-field histograms around each landmark "
-         "(docs/method.md, SRD): the change between the scans, and each scan's mismatch with the landmark's mirror twin "
-         "(0 = locally mirror-symmetric; Me and Pog are compared with themselves).</p>\n"
-      << srd_table.str();
+// A table cell: the value with prec decimals, or `missing`.
+std::string cell(bool ok, double v, int prec, const char* missing = "n/a") { return ok ? fixed(v, prec) : missing; }
+
+void scores_html(std::ostringstream& h, const std::vector<ScoreLine>& lines) {
+  h << "<h2>Scores</h2>\n<table><tr><th>score</th><th>pre</th><th>post</th><th>change</th></tr>\n";
+  for (const auto& [r, v] : lines)
+    h << "<tr><td>" << html_escape(r.label) << "</td><td>" << cell(v.pre_ok, v.pre, r.prec) << "</td><td>"
+      << cell(v.post_ok, v.post, r.prec) << "</td><td>" << cell(v.pre_ok && v.post_ok, v.post - v.pre, r.prec)
+      << "</td></tr>\n";
+  h << "</table>\n<p class=\"muted\">change = post &minus; pre. Each scan's scores are measured on its own surface and "
+       "symmetry plane; see each run's report.html for details.</p>\n";
+}
+
+void change_html(std::ostringstream& h, const Alignment& a) {
+  h << "<h2>Surface change (post aligned to pre)</h2>\n<p>Mean |change| " << fixed(a.change.mean_abs)
+    << " mm, 95th percentile " << fixed(a.change.p95) << " mm, largest outward " << fixed(a.change.max_outward)
+    << " mm, inward " << fixed(a.change.max_inward) << " mm. Alignment: " << a.fit.landmark_pairs
+    << " common landmarks, then ICP; rotation " << fixed(a.rotation_deg) << "&deg;, translation "
+    << fixed(norm(a.fit.transform.t)) << " mm, residual (closest half) " << fixed(a.fit.rms_mm) << " mm.</p>\n";
+}
+
+void transfer_table_html(std::ostringstream& h, const Transfer& t) {
+  h << "<table><tr><th>landmark</th><th>detected on post</th><th>registered</th><th>overlap</th>"
+       "<th>detected &harr; transferred (mm)</th><th>used</th><th>why</th></tr>\n";
+  for (const auto& x : t.landmarks)
+    h << "<tr><td>" << html_escape(x.name) << "</td><td>" << (x.detected ? "yes" : "no") << "</td><td>"
+      << (x.registered ? "yes" : "no") << "</td><td>" << fixed(100 * x.overlap, 0) << " %</td><td>"
+      << cell(x.disagreement_mm >= 0, x.disagreement_mm, 1, "&ndash;") << "</td><td>"
+      << (x.used ? "<b>transferred</b>" : "detected") << "</td><td>" << html_escape(x.reason) << "</td></tr>\n";
+  h << "</table>\n";
+}
+
+void bilateral_table_html(std::ostringstream& h, const std::vector<BilateralLine>& lines) {
+  h << "<table><tr><th>L&minus;R</th><th>pre</th><th>post (with transferred landmarks)</th><th>change</th></tr>\n";
+  for (const auto& l : lines)
+    h << "<tr><td>" << html_escape(l.measure) << "</td><td>" << cell(l.has_pre, l.pre, 2) << "</td><td>" << fixed(l.post)
+      << "</td><td>" << cell(l.has_pre, l.post - l.pre, 2) << "</td></tr>\n";
+  h << "</table>\n";
+}
+
+// Landmarks on POST: the transfer table and, when any was used, the
+// bilateral differences measured on them (nothing when transfer was off).
+void landmarks_html(std::ostringstream& h, const Transfer& t, const std::vector<BilateralLine>& bilateral) {
+  if (t.landmarks.empty()) return;
+  h << "<h2>Landmarks on post</h2>\n<p class=\"muted\">Each landmark's 25 mm neighbourhood on pre registered to post "
+       "(Improved Spin Image matching, RANSAC, ICP; docs/descriptors.md). A landmark is transferred when post's own "
+       "detection is missing or lies more than 3 mm from where its registered neighbourhood puts it (a plate, an "
+       "osteotomy);";
+  h << (t.used.empty() ? " none was." : " transferred here: ");
+  for (std::size_t i = 0; i < t.used.size(); ++i) h << (i ? ", " : "") << html_escape(t.used[i]);
+  h << "</p>\n";
+  transfer_table_html(h, t);
+  if (t.used.empty()) return;
+  h << "<p>Bilateral differences with post measured on the landmarks used:</p>\n";
+  bilateral_table_html(h, bilateral);
+  h << "<p class=\"muted\">The score table above keeps each run's own numbers (post's from its detected "
+       "landmarks).</p>\n";
+}
+
+void srd_html(std::ostringstream& h, const SrdComparison& srd) {
+  if (!srd.comparable) return;
+  h << "<h2>Landmark neighbourhoods (SRD)</h2>\n<p class=\"muted\">Signed-angle-field histograms around each landmark "
+       "(docs/method.md, SRD): the change between the scans, and each scan's mismatch with the landmark's mirror twin "
+       "(0 = locally mirror-symmetric; Me and Pog are compared with themselves).</p>\n"
+    << "<table><tr><th>landmark</th><th>descriptor change pre&rarr;post (rad)</th><th>twin mismatch pre</th>"
+       "<th>twin mismatch post</th></tr>\n";
+  for (const auto& l : srd.lines)
+    h << "<tr><td>" << html_escape(l.landmark) << "</td><td>" << cell(l.distance_rad >= 0, l.distance_rad, 3) << "</td><td>"
+      << cell(l.mismatch.pre_ok, l.mismatch.pre, 3, "&ndash;") << "</td><td>"
+      << cell(l.mismatch.post_ok, l.mismatch.post, 3, "&ndash;") << "</td></tr>\n";
+  h << "</table>\n";
+}
+
+// The change views, then each run's own mirror-distance views.
+void views_html(std::ostringstream& h, const reports::RenderedViews& rv, const RunData& pre, const RunData& post) {
   if (rv.files.empty()) {
-    h << "<p class=\"muted\">3D views not rendered: " << reports::html_escape(rv.error) << "</p>\n";
+    h << "<p class=\"muted\">3D views not rendered: " << html_escape(rv.error) << "</p>\n";
   } else {
     h << "<p class=\"muted\">Red: post lies outside pre (bone added or moved outward); blue: inside.</p><div class=\"views\">\n";
     for (const auto& f : rv.files)
-      h << "<figure><img alt=\"" << reports::html_escape(fs::path(f).stem().string()) << "\" src=\""
-        << reports::png_data_uri(f) << "\"><figcaption class=\"muted\">" << reports::html_escape(fs::path(f).stem().string())
-        << "</figcaption></figure>\n";
+      h << "<figure><img alt=\"" << html_escape(fs::path(f).stem().string()) << "\" src=\"" << reports::png_data_uri(f)
+        << "\"><figcaption class=\"muted\">" << html_escape(fs::path(f).stem().string()) << "</figcaption></figure>\n";
     h << "</div>\n";
   }
   for (const auto* d : {&pre, &post}) {
-    const fs::path front = d->dir / "qc" / "view_mirror_front.png";
-    if (!fs::exists(front)) continue;
+    if (!fs::exists(d->dir / "qc" / "view_mirror_front.png")) continue;
     h << "<h2>Mirror distance, " << (d == &pre ? "pre" : "post") << "</h2>\n<div class=\"views\">\n";
     for (const char* v : {"front", "below", "left", "right"}) {
       const fs::path f = d->dir / "qc" / (std::string("view_mirror_") + v + ".png");
@@ -395,10 +540,48 @@ int compare_command(const cli::Args& args) {
     }
     h << "</div>\n";
   }
+}
+
+std::string compare_html(const RunData& pre, const RunData& post, const Alignment& a, const Transfer& t,
+                         const Tables& tables, const std::vector<std::string>& warnings, const reports::RenderedViews& rv) {
+  std::ostringstream h;
+  h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym pre/post comparison</title>"
+       "<style>body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#1d2433;padding:0 1em}"
+       "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #dde3ec;padding:.3em .7em;text-align:right}"
+       "td:first-child,th:first-child{text-align:left}th{background:#f2f5fa}.muted{color:#5a6475;font-size:.9em}"
+       ".views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views img{width:100%;border:1px solid #dde3ec}"
+       ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}</style></head><body>\n";
+  h << "<h1>Pre/post comparison</h1>\n<p class=\"muted\">MandiSym " << html_escape(version()) << " &middot; pre: "
+    << html_escape(pre.dir.filename().string()) << " &middot; post: " << html_escape(post.dir.filename().string())
+    << "</p>\n";
+  for (const auto& w : warnings) h << "<div class=\"warn\">&#9888; " << html_escape(w) << "</div>\n";
+  scores_html(h, tables.scores);
+  change_html(h, a);
+  landmarks_html(h, t, tables.bilateral);
+  srd_html(h, tables.srd);
+  views_html(h, rv, pre, post);
   h << "</body></html>\n";
-  reports::write_text_atomic((out / "compare.html").string(), h.str());
-  reports::write_text_atomic((out / "compare.json").string(), dump_json(cj) + "\n");
-  if (!quiet) std::cout << "compare: " << (out / "compare.html").string() << std::endl;
+  return h.str();
+}
+
+}  // namespace
+
+// The stages of docs/report.md's compare: read inputs, checks, align (and
+// transfer landmarks), score table, write outputs.
+int compare_command(const cli::Args& args) {
+  const CompareOptions o = compare_options(args);
+  const RunData pre = resolve(args.positional[0], o.out, "pre", o.quiet);
+  const RunData post = resolve(args.positional[1], o.out, "post", o.quiet);
+  const compare_checks::Consistency cons = check_pair(pre, post);
+  const Alignment a = align_post(pre, post);
+  const Transfer t = transfer_from_pre(pre, post, a.fit.transform, o.transfer_mode);
+  const Tables tables = score_tables(pre, post, t);
+  const reports::RenderedViews rv = write_change_surface(o.out, a, t, pre.plane);
+  const std::vector<std::string> warnings = compare_warnings(rv, a, cons);
+  reports::write_text_atomic((o.out / "compare.html").string(), compare_html(pre, post, a, t, tables, warnings, rv));
+  reports::write_text_atomic((o.out / "compare.json").string(),
+                             dump_json(compare_json(pre, post, a, t, tables, warnings, cons)) + "\n");
+  if (!o.quiet) std::cout << "compare: " << (o.out / "compare.html").string() << std::endl;
   return 0;
 }
 
