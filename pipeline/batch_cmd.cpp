@@ -28,6 +28,7 @@
 #include "core/json_text.h"
 #include "core/memory.h"
 #include "pipeline/batch_support.h"
+#include "pipeline/cohort_files.h"
 #include "pipeline/commands.h"
 #include "reports/writers.h"
 #include "threads/threads.h"
@@ -77,19 +78,8 @@ void on_sigint(int) { g_interrupted = true; }
 
 namespace bs = batch_support;
 
-struct Study {
-  std::string id;    // safe folder name (pseudonymous under --deidentify)
-  std::string name;  // as listed (folder entry or CSV id)
-  std::string path;
-  std::string status = "pending";  // ok | qc_failed | failed | killed | timeout | done-earlier | not run (interrupted)
-  int exit_code = -1;              // the child's exit code; -1: it did not exit (killed, timeout, not started): empty in cohort.csv
-  int signal = 0;                  // the signal that ended it (killed, timeout), else 0
-  std::string error;
-  double seconds = -1;  // wall-clock of its run; < 0: not run here
-  long peak_kb = -1;    // peak resident memory of its run (wait4's ru_maxrss); < 0: not run here
-  std::vector<std::string> options;  // its own run options (CSV columns), after batch's `--` options
-  std::string run_options;           // the options its run was given (cohort.csv `options`; scrubbed under --deidentify)
-};
+using cohort::Study;
+using cohort::split_csv_line;
 
 // CSV columns that give a study its own run option: column -> option. Paths
 // (mask) are relative to the CSV's folder, as `path` is.
@@ -113,27 +103,6 @@ std::string safe_id(std::string s) {
   return s;
 }
 
-std::vector<std::string> split_csv_line(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cur;
-  bool q = false;
-  for (std::size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (q) {
-      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') cur += '"', ++i;
-      else if (c == '"') q = false;
-      else cur += c;
-    } else if (c == '"') {
-      q = true;
-    } else if (c == ',') {
-      out.push_back(cur), cur.clear();
-    } else if (c != '\r') {
-      cur += c;
-    }
-  }
-  out.push_back(cur);
-  return out;
-}
 
 std::vector<Study> list_studies(const std::string& source) {
   std::vector<Study> out;
@@ -177,6 +146,7 @@ std::vector<Study> list_studies(const std::string& source) {
       st.name = id;
       st.id = safe_id(id);
       st.path = p.string();
+      if (const long cg = col("group"); cg >= 0 && static_cast<long>(v.size()) > cg) st.group = v[static_cast<std::size_t>(cg)];
       for (const auto& [column, option] : kStudyOptionColumns) {
         const long c = col(column);
         if (c < 0 || static_cast<long>(v.size()) <= c || v[static_cast<std::size_t>(c)].empty()) continue;
@@ -416,31 +386,7 @@ void record_unfinished(Study& s, const fs::path& out) {
   if (s.error.empty()) s.error = "no complete run in " + (out / s.id).string();
 }
 
-std::string fmt(double v, int prec = 3) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*f", prec, v);
-  return b;
-}
 
-// Inline SVG histogram of values, outliers marked.
-std::string histogram_svg(const std::vector<double>& v, const std::string& title) {
-  if (v.empty()) return "";
-  const double lo = *std::min_element(v.begin(), v.end()), hi = *std::max_element(v.begin(), v.end());
-  const int bins = 12;
-  std::vector<int> h(bins, 0);
-  for (double x : v) h[std::min(bins - 1, static_cast<int>((x - lo) / std::max(1e-12, hi - lo) * bins))]++;
-  const int top = *std::max_element(h.begin(), h.end());
-  std::ostringstream o;
-  o << "<figure><svg width=\"360\" height=\"150\" role=\"img\" aria-label=\"" << reports::html_escape(title) << "\">";
-  for (int b = 0; b < bins; ++b) {
-    const double hh = 110.0 * h[b] / std::max(1, top);
-    o << "<rect x=\"" << 10 + b * 28 << "\" y=\"" << fmt(120 - hh, 1) << "\" width=\"26\" height=\"" << fmt(hh, 1)
-      << "\" fill=\"#6a8cc7\"/>";
-  }
-  o << "<text x=\"10\" y=\"140\" font-size=\"11\">" << fmt(lo) << "</text><text x=\"300\" y=\"140\" font-size=\"11\">" << fmt(hi)
-    << "</text></svg><figcaption>" << reports::html_escape(title) << " (n = " << v.size() << ")</figcaption></figure>\n";
-  return o.str();
-}
 
 // How many studies run at once and with how many threads each (docs/batch.md,
 // "Jobs and threads"). A fixed --jobs N: N at once, each with
@@ -550,84 +496,6 @@ void run_studies(std::vector<Study>& studies, const cli::Args& args, LaunchPlan 
   if (tty) std::cout << "\n";
 }
 
-std::string exit_code_text(const Study& s) { return s.exit_code >= 0 ? std::to_string(s.exit_code) : ""; }
-
-// cohort.csv: id, status, exit code, error, signal, seconds, then each study's results.csv row.
-void write_cohort_csv(const std::vector<Study>& studies, const std::vector<std::string>& hcols,
-                      const std::vector<std::vector<std::string>>& rows, const fs::path& out) {
-  std::ostringstream csv;
-  const auto q = reports::csv_quote;
-  csv << "id,status,exit_code,error,signal,seconds,peak_memory_mb,options";
-  for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << hcols[c];  // skip study,status
-  csv << "\n";
-  for (std::size_t i = 0; i < studies.size(); ++i) {
-    const Study& s = studies[i];
-    csv << q(s.id) << "," << q(s.status) << "," << exit_code_text(s) << "," << q(s.error) << ","
-        << (s.signal ? std::to_string(s.signal) : "") << "," << (s.seconds >= 0 ? fmt(s.seconds, 1) : "") << ","
-        << (s.peak_kb > 0 ? fmt(static_cast<double>(s.peak_kb) * 1024.0 / 1e6, 0) : "") << "," << q(s.run_options);
-    for (std::size_t c = 2; c < hcols.size(); ++c) csv << "," << (c < rows[i].size() ? rows[i][c] : "");
-    csv << "\n";
-  }
-  reports::write_text_atomic((out / "cohort.csv").string(), csv.str());
-}
-
-// cohort.html: distributions, outliers (beyond 1.5 IQR), links to reports.
-void write_cohort_html(const std::vector<Study>& studies, const std::vector<std::string>& hcols,
-                       const std::vector<std::vector<std::string>>& rows, const fs::path& out, std::size_t n_ok,
-                       std::size_t n_failed) {
-  auto column = [&](const std::string& name) {
-    std::vector<std::pair<std::size_t, double>> v;
-    for (std::size_t c = 0; c < hcols.size(); ++c)
-      if (hcols[c] == name)
-        for (std::size_t i = 0; i < rows.size(); ++i)
-          if (c < rows[i].size() && !rows[i][c].empty()) v.emplace_back(i, std::atof(rows[i][c].c_str()));
-    return v;
-  };
-  std::map<std::size_t, std::vector<std::string>> outliers;
-  std::ostringstream figs;
-  for (const char* name : {"saf_score", "mirror_rms_mm", "mirror_p95_mm", "ramus_height_diff_mm"}) {
-    const auto v = column(name);
-    std::vector<double> x;
-    for (const auto& [i, val] : v) x.push_back(val);
-    figs << histogram_svg(x, name);
-    if (x.size() >= 4) {
-      std::vector<double> s = x;
-      std::sort(s.begin(), s.end());
-      const double q1 = s[s.size() / 4], q3 = s[3 * s.size() / 4], iqr = q3 - q1;
-      for (const auto& [i, val] : v)
-        if (val > q3 + 1.5 * iqr || val < q1 - 1.5 * iqr) outliers[i].push_back(name);
-    }
-  }
-  std::ostringstream h;
-  h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym cohort</title><style>"
-       "body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1200px;color:#1d2433;padding:0 1em}"
-       "table{border-collapse:collapse}td,th{border:1px solid #dde3ec;padding:.25em .6em;text-align:right}"
-       "td:first-child,th:first-child,td.l{text-align:left}th{background:#f2f5fa}.bad{background:#fde8e8}"
-       ".out{background:#fff4e5}figure{display:inline-block;margin:.5em}figcaption{font-size:.85em;color:#5a6475}"
-       "</style></head><body>\n<h1>Cohort</h1>\n<p>"
-    << studies.size() << " studies: " << n_ok << " complete, " << n_failed << " failed or not run."
-    << (g_interrupted ? " <strong>Interrupted.</strong>" : "") << " Outliers: beyond 1.5 IQR of the cohort.</p>\n"
-    << "<h2>Distributions</h2>\n" << figs.str() << "<h2>Studies</h2>\n<table><tr><th>study</th><th>status</th><th>exit code</th><th>seconds</th>";
-  for (std::size_t c = 2; c < hcols.size(); ++c) h << "<th>" << reports::html_escape(hcols[c]) << "</th>";
-  h << "<th>outlier in</th></tr>\n";
-  for (std::size_t i = 0; i < studies.size(); ++i) {
-    const Study& s = studies[i];
-    const bool ok = s.status == "ok" || s.status == "done-earlier";
-    h << "<tr class=\"" << (ok ? (outliers.count(i) ? "out" : "") : "bad") << "\"><td class=\"l\">";
-    if (ok) h << "<a href=\"" << reports::html_escape(s.id) << "/report.html\">" << reports::html_escape(s.id) << "</a>";
-    else h << reports::html_escape(s.id);
-    h << "</td><td class=\"l\">" << reports::html_escape(s.status) << (s.error.empty() ? "" : ": " + reports::html_escape(s.error))
-      << "</td><td>" << exit_code_text(s) << (s.signal ? " (signal " + std::to_string(s.signal) + ")" : "") << "</td><td>"
-      << (s.seconds >= 0 ? fmt(s.seconds, 1) : "") << "</td>";
-    for (std::size_t c = 2; c < hcols.size(); ++c) h << "<td>" << reports::html_escape(c < rows[i].size() ? rows[i][c] : "") << "</td>";
-    std::string o;
-    for (const auto& n : outliers[i]) o += (o.empty() ? "" : ", ") + n;
-    h << "<td class=\"l\">" << reports::html_escape(o) << "</td></tr>\n";
-  }
-  h << "</table>\n</body></html>\n";
-  reports::write_text_atomic((out / "cohort.html").string(), h.str());
-}
-
 }  // namespace
 
 int batch_command(const cli::Args& args) {
@@ -670,21 +538,11 @@ int batch_command(const cli::Args& args) {
   for (auto& s : studies)
     if (s.status == "pending") s.status = "not run (interrupted)";
 
-  std::string header;
-  std::vector<std::vector<std::string>> rows(studies.size());
-  for (std::size_t i = 0; i < studies.size(); ++i) {
-    std::ifstream f(out / studies[i].id / "results.csv");
-    std::string h, r;
-    if ((studies[i].status == "ok" || studies[i].status == "done-earlier") && std::getline(f, h) && std::getline(f, r)) {
-      if (header.empty()) header = h;
-      rows[i] = split_csv_line(r);
-    }
-  }
-  const auto hcols = split_csv_line(header.empty() ? reports::csv_header().substr(0, reports::csv_header().size() - 1) : header);
-  write_cohort_csv(studies, hcols, rows, out);
+  const cohort::Table table = cohort::read_results(studies, out);
+  cohort::write_cohort_csv(studies, table, out);
+  cohort::write_cohort_html(studies, table, cohort::write_cohort_groups(studies, table, out), out, g_interrupted);
   std::size_t n_ok = 0, n_failed = 0;
   for (const auto& s : studies) (s.status == "ok" || s.status == "done-earlier" ? n_ok : n_failed)++;
-  write_cohort_html(studies, hcols, rows, out, n_ok, n_failed);
   if (!quiet) std::cout << "batch: " << n_ok << " complete, " << n_failed << " failed or not run; " << (out / "cohort.html").string() << std::endl;
   if (g_interrupted) return 130;
   return n_failed ? static_cast<int>(ExitCode::BatchIncomplete) : 0;

@@ -939,7 +939,7 @@ TEST(EndToEnd, BatchPassesRunOptionsAndCsvColumnsOverrideThem) {
   fs::create_directories(src);
   fs::create_directory_symlink(samples / "symmetric" / "dicom", src / "sym");
   fs::create_directory_symlink(samples / "ramus_L_plus4mm" / "dicom", src / "ramus4");
-  std::ofstream(src / "list.csv") << "id,path,hu_offset,orientation\nsym,sym,,\nramus4,ramus4,5,\n";
+  std::ofstream(src / "list.csv") << "id,path,hu_offset,orientation,group\nsym,sym,,,control\nramus4,ramus4,5,,case\n";
   const std::string list = (src / "list.csv").string();
   std::string err;
   // Refused before anything runs: unknown or batch-owned options, bad values.
@@ -965,6 +965,18 @@ TEST(EndToEnd, BatchPassesRunOptionsAndCsvColumnsOverrideThem) {
   EXPECT_NE(row1.find("--bone-threshold 260 --no-figures\""), std::string::npos) << row1;
   EXPECT_NE(row2.find("--bone-threshold 260 --no-figures --hu-offset 5\""), std::string::npos) << row2;
   EXPECT_NE(row1.find("--threads "), std::string::npos) << row1;
+  EXPECT_NE(header.find(",qc_status,saf_band,mirror_p95_band,menton_deviation_mm,menton_band"), std::string::npos) << header;
+  EXPECT_NE(row1.find(",pass,"), std::string::npos) << row1;
+  // The `group` column: cohort_groups.csv and the Groups section of cohort.html.
+  std::ifstream g(out / "cohort_groups.csv");
+  std::string gh, g1;
+  std::getline(g, gh), std::getline(g, g1);
+  EXPECT_EQ(gh.rfind("score,group_a,group_b,n_a,n_b,median_a,", 0), 0u) << gh;
+  EXPECT_EQ(g1.rfind("\"saf_score\",\"case\",\"control\",1,1,", 0), 0u) << g1;
+  std::ifstream hf(out / "cohort.html");
+  const std::string html((std::istreambuf_iterator<char>(hf)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("<h2>Groups</h2>"), std::string::npos);
+  EXPECT_NE(html.find(">studies</text>"), std::string::npos) << "histograms without a count axis";
   for (const auto& d : {src, out}) fs::remove_all(d);
 }
 
