@@ -17,6 +17,7 @@
 #include "pipeline/commands.h"
 #include "pipeline/compare_checks.h"
 #include "reference/reference.h"
+#include "reports/html_page.h"
 #include "reports/render.h"
 #include "reports/writers.h"
 #include "surface/surface.h"
@@ -545,12 +546,6 @@ void views_html(std::ostringstream& h, const reports::RenderedViews& rv, const R
 std::string compare_html(const RunData& pre, const RunData& post, const Alignment& a, const Transfer& t,
                          const Tables& tables, const std::vector<std::string>& warnings, const reports::RenderedViews& rv) {
   std::ostringstream h;
-  h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym pre/post comparison</title>"
-       "<style>body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#1d2433;padding:0 1em}"
-       "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #dde3ec;padding:.3em .7em;text-align:right}"
-       "td:first-child,th:first-child{text-align:left}th{background:#f2f5fa}.muted{color:#5a6475;font-size:.9em}"
-       ".views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views img{width:100%;border:1px solid #dde3ec}"
-       ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}</style></head><body>\n";
   h << "<h1>Pre/post comparison</h1>\n<p class=\"muted\">MandiSym " << html_escape(version()) << " &middot; pre: "
     << html_escape(pre.dir.filename().string()) << " &middot; post: " << html_escape(post.dir.filename().string())
     << "</p>\n";
@@ -560,8 +555,7 @@ std::string compare_html(const RunData& pre, const RunData& post, const Alignmen
   landmarks_html(h, t, tables.bilateral);
   srd_html(h, tables.srd);
   views_html(h, rv, pre, post);
-  h << "</body></html>\n";
-  return h.str();
+  return reports::html_page("MandiSym pre/post comparison", h.str());
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 # cmake -DINPUT=file -DOUTPUT=header -DNAME=identifier -P embed_text.cmake
 # Writes a header defining `inline constexpr const char NAME[]` with INPUT's
-# text as a raw string literal (the report's viewer script).
+# text as a raw string literal (the report's viewer script, the pages' stylesheet).
 file(READ "${INPUT}" text)
 set(delim "mandisym_embed")
 string(FIND "${text}" ")${delim}\"" clash)

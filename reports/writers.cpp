@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/files.h"
+#include "reports/html_page.h"
 #include "reports/interpretation.h"
 #include "reports/viewer.h"
 #include "surface/surface.h"
@@ -624,40 +625,6 @@ std::string viewer_html(const RunSummary& s) {
   }
 }
 
-// The page's head: title and stylesheet, then <body>.
-void page_head_html(std::ostringstream& h) {
-  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
-    << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
-    << "<title>MandiSym mandibular asymmetry report</title>\n<style>\n"
-    << "body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:2em auto;max-width:1100px;"
-       "color:#1d2330;line-height:1.4;padding:0 1em}\n"
-    << "h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:2px solid #dde3ec;padding-bottom:.2em;margin-top:1.6em}\n"
-    << "table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #dde3ec;padding:.25em .6em;text-align:right}"
-       "th{background:#f3f6fa}td:first-child,th:first-child{text-align:left}\n"
-    << ".warn{background:#fff4e5;border-left:4px solid #f0a020;padding:.6em 1em;margin:.6em 0}\n"
-    << ".qcfail{background:#fde4e1;border-left:6px solid #d0453a;padding:.6em 1em;margin:.8em 0;color:#6b1710}\n"
-    << ".cards{display:flex;flex-wrap:wrap;gap:1em}.card{border:1px solid #dde3ec;border-radius:8px;padding:.8em 1.2em;"
-       "min-width:200px}.card .v{font-size:1.8em;font-weight:600}.card .k{color:#5a6475;font-size:.9em}\n"
-    << "figure{display:inline-block;margin:.4em}figure img{max-width:340px;border:1px solid #dde3ec}.views{display:grid;grid-template-columns:repeat(4,1fr);gap:.3em}.views figure{margin:0}.views figure img{width:100%;max-width:none}"
-       "figcaption{font-size:.85em;color:#5a6475}\n.muted{color:#5a6475;font-size:.9em}\n"
-    << ".cards{display:grid;grid-template-columns:repeat(auto-fill,minmax(330px,1fr))}.card{border-top:5px solid #b8c2d0}"
-       ".card .pill{display:inline-block;border-radius:10px;padding:.05em .6em;margin:.2em 0;font-size:.85em;font-weight:600;"
-       "background:#eef1f5;color:#3d4757}.card .m{font-size:.88em;margin-top:.35em}.card .t{font-size:.8em;color:#5a6475;"
-       "margin-top:.35em}.band-typical{border-top-color:#3c9a5f}.band-typical .pill{background:#e3f3e8;color:#226b3e}"
-       ".band-mild{border-top-color:#e0a020}.band-mild .pill{background:#fff2d6;color:#8a5a00}"
-       ".band-marked{border-top-color:#d0453a}.band-marked .pill{background:#fde4e1;color:#9b2219}"
-       ".refs{font-size:.82em;color:#5a6475}.refs li{margin:.15em 0}\n"
-    << ".viewer{border:1px solid #dde3ec;border-radius:8px;padding:.6em}.viewer [hidden]{display:none!important}.viewer-bar{display:flex;flex-wrap:wrap;gap:.4em;"
-       "align-items:center;font-size:.9em}.viewer-bar .sep{width:1em}.viewer-bar button{font:inherit;padding:.15em .7em;"
-       "border:1px solid #b8c2d0;border-radius:5px;background:#f3f6fa;cursor:pointer}.viewer-stage{position:relative;"
-       "margin:.5em 0}.viewer-stage canvas{display:block;width:100%;height:520px;cursor:grab;touch-action:none;"
-       "border:1px solid #eef1f5}.viewer-labels{position:absolute;inset:0;pointer-events:none;overflow:hidden}"
-       ".viewer-labels span{position:absolute;font-size:11px;color:#135a25;background:rgba(255,255,255,.75);"
-       "padding:0 2px;border-radius:2px;white-space:nowrap}.viewer-ramp{height:14px;max-width:420px;border:1px solid #b8c2d0}"
-       ".viewer-ticks{display:flex;justify-content:space-between;max-width:420px;font-size:.8em}\n"
-    << "</style></head><body>\n";
-}
-
 // Identity of the input: kind, series UID, study date, series description,
 // scanner and kernel (every DICOM string escaped), grid and pixel hash.
 void identity_html(std::ostringstream& h, const RunSummary& s) {
@@ -916,7 +883,6 @@ void provenance_html(std::ostringstream& h, const RunSummary& s) {
 std::string report_html(const RunSummary& s, const std::vector<std::string>& figures, const std::vector<std::string>& views,
                         const std::string& views_note) {
   std::ostringstream h;
-  page_head_html(h);
   identity_html(h, s);
   qc_html(h, s);
   warnings_html(h, s);
@@ -938,8 +904,7 @@ std::string report_html(const RunSummary& s, const std::vector<std::string>& fig
   surface_and_plane_html(h, s);
   methods_html(h);
   provenance_html(h, s);
-  h << "</body></html>\n";
-  return h.str();
+  return html_page("MandiSym mandibular asymmetry report", h.str());
 }
 
 }  // namespace ms::reports
