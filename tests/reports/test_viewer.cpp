@@ -1,8 +1,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <string>
 
+#include "reports/html_page.h"
 #include "reports/viewer.h"
 #include "reports/writers.h"
 
@@ -146,4 +149,41 @@ TEST(Viewer, SectionEmbedsDataScriptAndFallbackSafely) {
   const auto data_end = html.find("</script>", data_begin);
   EXPECT_EQ(html.substr(data_begin, data_end - data_begin).find('<'), std::string::npos);
   EXPECT_EQ(std::string(viewer_script()).find("</script"), std::string::npos);
+}
+
+// The page skeleton and stylesheet shared by report.html and compare.html
+// (reports/html_page.h), compiled in like the viewer's script.
+
+TEST(HtmlPage, StylesheetIsTheRepositoryFileCompiledIn) {
+  std::ifstream in(std::string(MANDISYM_SOURCE_DIR) + "/reports/assets/mandisym.css", std::ios::binary);
+  ASSERT_TRUE(in);
+  std::stringstream file;
+  file << in.rdbuf();
+  EXPECT_EQ(std::string(page_css()), file.str());
+}
+
+TEST(HtmlPage, StylesheetFetchesNothingAndCannotEndTheStyleElement) {
+  const std::string css = page_css();
+  for (const char* s : {"http", "url(", "@import", "</style", "</STYLE"}) EXPECT_EQ(css.find(s), std::string::npos) << s;
+  // The classes the pages use.
+  for (const char* c : {".warn{", ".muted{", ".qcfail{", ".views{", ".card{", ".band-marked{", ".viewer{", ".refs{"})
+    EXPECT_NE(css.find(c), std::string::npos) << c;
+}
+
+TEST(HtmlPage, WrapsTheBodyInTheSkeletonWithTheStylesheetInlined) {
+  const std::string page = html_page("A & <B>", "<h1>x</h1>\n");
+  EXPECT_EQ(page.rfind("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n", 0), 0u);
+  EXPECT_NE(page.find("<title>A &amp; &lt;B&gt;</title>\n<style>\n" + std::string(page_css()) + "</style></head><body>\n<h1>x</h1>\n</body></html>\n"),
+            std::string::npos);
+  const std::string tail = "</body></html>\n";
+  EXPECT_EQ(page.substr(page.size() - tail.size()), tail);
+}
+
+TEST(HtmlPage, ReportUsesTheSharedSkeleton) {
+  RunSummary s;
+  const std::string html = report_html(s, {}, {}, "no display");
+  const auto body = html.find("<body>\n");
+  ASSERT_NE(body, std::string::npos);
+  EXPECT_EQ(html, html_page("MandiSym mandibular asymmetry report", html.substr(body + 7, html.size() - body - 7 - 15)));
+  EXPECT_NE(html.find("3D views not rendered: no display"), std::string::npos);
 }
