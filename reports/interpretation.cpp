@@ -108,101 +108,114 @@ const std::vector<Reference>& interpretation_references() {
   return refs;
 }
 
-std::vector<Interpretation> interpret(const InterpretationInputs& in) {
-  std::vector<Interpretation> out;
+namespace {
 
-  {  // SAF score: the project's own metric; band from phantoms only.
-    Interpretation x;
-    x.key = "saf_score";
-    x.title = "SAF asymmetry score";
-    x.value_text = std::isfinite(in.saf_score) ? fixed(in.saf_score, 3) + " rad" : "n/a";
-    x.banded_value = in.saf_score;
-    x.band = classify(in.saf_score, kSafThresholds);
+// SAF score: the project's own metric; band from phantoms only.
+Interpretation saf_interpretation(const InterpretationInputs& in) {
+  Interpretation x;
+  x.key = "saf_score";
+  x.title = "SAF asymmetry score";
+  x.value_text = std::isfinite(in.saf_score) ? fixed(in.saf_score, 3) + " rad" : "n/a";
+  x.banded_value = in.saf_score;
+  x.band = classify(in.saf_score, kSafThresholds);
+  x.meaning =
+      "How much the shape of one side differs from the mirror image of the other, compared through harmonic-field "
+      "angles (0 = perfect symmetry). MandiSym's own metric: there is no published threshold.";
+  x.thresholds = "below " + fixed(kSafThresholds.mild, 3) + " typical (all symmetric phantoms); " +
+                 fixed(kSafThresholds.mild, 3) + "-" + fixed(kSafThresholds.marked, 3) +
+                 " mild (like a 2 mm ramus elongation); " + fixed(kSafThresholds.marked, 3) +
+                 " and above marked (like a 4 mm ramus or 2 mm body/chin change). Provisional, phantom-derived, "
+                 "not clinically validated.";
+  x.sources = {"mandisym_phantoms"};
+  x.provisional = true;
+  return x;
+}
+
+// Mirror distance: band on p95 of |d|.
+Interpretation mirror_interpretation(const InterpretationInputs& in) {
+  Interpretation x;
+  x.key = "mirror_distance";
+  x.title = "Mirror distance RMS / p95";
+  x.value_text = fixed(in.mirror_rms_mm, 2) + " / " + fixed(in.mirror_p95_mm, 2) + " mm";
+  x.banded_value = in.mirror_p95_mm;
+  x.band = classify(in.mirror_p95_mm, kMirrorP95Thresholds);
+  x.detail = "band from the p95; RMS is shown for comparison between scans";
+  x.meaning =
+      "Distance between the surface and its reflection through the symmetry plane (Cevidanes et al. 2011): RMS "
+      "over the whole mandible, and the 95th percentile, i.e. what the most asymmetric 5 % of the surface exceeds.";
+  x.thresholds =
+      "p95 below 2 mm typical; 2-4 mm mild; 4 mm and above marked. 2 mm is the usual clinical-relevance "
+      "convention of CBCT surface-distance maps and 4 mm the size of asymmetry that is generally recognised; "
+      "neither is a validated cut-off for this statistic.";
+  x.sources = {"cevidanes2011", "choi2015"};
+  x.provisional = true;
+  return x;
+}
+
+// Ramus height: Habets' index.
+Interpretation ramus_interpretation(const InterpretationInputs& in) {
+  Interpretation x;
+  x.key = "ramus_height";
+  x.title = "Ramus height L\xE2\x88\x92R";
+  const double diff = in.ramus_L_mm - in.ramus_R_mm;
+  const double idx = habets_index_pct(in.ramus_L_mm, in.ramus_R_mm);
+  x.value_text = std::isfinite(diff) ? signed_num(diff, 2) + " mm" : "n/a";
+  x.detail = std::isfinite(diff) ? "L " + fixed(in.ramus_L_mm, 1) + ", R " + fixed(in.ramus_R_mm, 1) +
+                                       " mm (Co\xE2\x80\x93Go); asymmetry index " + fixed(idx, 1) + " %"
+                                 : "Co or Go missing on a side";
+  x.banded_value = idx;
+  x.band = classify(idx, kRamusIndexThresholds);
+  x.meaning =
+      "Difference in ramus height (condylion to gonion) between the sides, banded by Habets' asymmetry index "
+      "100|L\xE2\x88\x92R|/(L+R).";
+  x.thresholds =
+      "index below 3 % typical (Habets' criterion); 3-6 % mild; 6 % and above marked (twice Habets' cut-off: "
+      "a MandiSym convention, not published). Habets measured on panoramic radiographs, not on 3D landmarks.";
+  x.sources = {"habets1988", "pintowong2024"};
+  return x;
+}
+
+// Menton deviation: from the cranial mid-sagittal plane when there is one.
+Interpretation menton_interpretation(const InterpretationInputs& in) {
+  Interpretation x;
+  x.key = "menton_deviation";
+  const double d = in.menton_to_plane_mm;
+  x.value_text = std::isfinite(d) ? fixed(std::abs(d), 2) + " mm" : "n/a";
+  x.banded_value = std::isfinite(d) ? std::abs(d) : kNaN;
+  x.band = classify(x.banded_value, kMentonThresholds);
+  if (in.menton_plane_cranial) {
+    x.title = "Menton deviation from the cranial midline";
+    x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the cranial mid-sagittal plane" +
+                                      (std::isfinite(in.menton_to_mandible_plane_mm)
+                                           ? "; " + fixed(std::abs(in.menton_to_mandible_plane_mm), 2) +
+                                                 " mm from the mandible's own plane"
+                                           : std::string())
+                                : "menton not found";
     x.meaning =
-        "How much the shape of one side differs from the mirror image of the other, compared through harmonic-field "
-        "angles (0 = perfect symmetry). MandiSym's own metric: there is no published threshold.";
-    x.thresholds = "below " + fixed(kSafThresholds.mild, 3) + " typical (all symmetric phantoms); " +
-                   fixed(kSafThresholds.mild, 3) + "-" + fixed(kSafThresholds.marked, 3) +
-                   " mild (like a 2 mm ramus elongation); " + fixed(kSafThresholds.marked, 3) +
-                   " and above marked (like a 4 mm ramus or 2 mm body/chin change). Provisional, phantom-derived, "
-                   "not clinically validated.";
-    x.sources = {"mandisym_phantoms"};
-    x.provisional = true;
-    out.push_back(x);
-  }
-  {  // Mirror distance: band on p95 of |d|.
-    Interpretation x;
-    x.key = "mirror_distance";
-    x.title = "Mirror distance RMS / p95";
-    x.value_text = fixed(in.mirror_rms_mm, 2) + " / " + fixed(in.mirror_p95_mm, 2) + " mm";
-    x.banded_value = in.mirror_p95_mm;
-    x.band = classify(in.mirror_p95_mm, kMirrorP95Thresholds);
-    x.detail = "band from the p95; RMS is shown for comparison between scans";
+        "Lateral distance of menton (lowest point of the chin) from the mirror plane of the skull above the "
+        "condyles: the chin's total deviation, as the cited studies measure it against the facial midline. The "
+        "mandible's own plane leans with a deformed mandible and would understate it.";
+  } else {
+    x.title = "Menton deviation from the plane";
+    x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the mandible's symmetry plane" : "menton not found";
     x.meaning =
-        "Distance between the surface and its reflection through the symmetry plane (Cevidanes et al. 2011): RMS "
-        "over the whole mandible, and the 95th percentile, i.e. what the most asymmetric 5 % of the surface exceeds.";
-    x.thresholds =
-        "p95 below 2 mm typical; 2-4 mm mild; 4 mm and above marked. 2 mm is the usual clinical-relevance "
-        "convention of CBCT surface-distance maps and 4 mm the size of asymmetry that is generally recognised; "
-        "neither is a validated cut-off for this statistic.";
-    x.sources = {"cevidanes2011", "choi2015"};
-    x.provisional = true;
-    out.push_back(x);
+        "Lateral distance of menton (lowest point of the chin) from the symmetry plane. The plane is fitted to the "
+        "mandible itself (the scan holds too little skull for a cranial plane), not to the cranial base or face as "
+        "in the cited studies, so this underestimates a chin deviation that the whole mandible shares.";
   }
-  {  // Ramus height: Habets' index.
-    Interpretation x;
-    x.key = "ramus_height";
-    x.title = "Ramus height L\xE2\x88\x92R";
-    const double diff = in.ramus_L_mm - in.ramus_R_mm;
-    const double idx = habets_index_pct(in.ramus_L_mm, in.ramus_R_mm);
-    x.value_text = std::isfinite(diff) ? signed_num(diff, 2) + " mm" : "n/a";
-    x.detail = std::isfinite(diff) ? "L " + fixed(in.ramus_L_mm, 1) + ", R " + fixed(in.ramus_R_mm, 1) +
-                                         " mm (Co\xE2\x80\x93Go); asymmetry index " + fixed(idx, 1) + " %"
-                                   : "Co or Go missing on a side";
-    x.banded_value = idx;
-    x.band = classify(idx, kRamusIndexThresholds);
-    x.meaning =
-        "Difference in ramus height (condylion to gonion) between the sides, banded by Habets' asymmetry index "
-        "100|L\xE2\x88\x92R|/(L+R).";
-    x.thresholds =
-        "index below 3 % typical (Habets' criterion); 3-6 % mild; 6 % and above marked (twice Habets' cut-off: "
-        "a MandiSym convention, not published). Habets measured on panoramic radiographs, not on 3D landmarks.";
-    x.sources = {"habets1988", "pintowong2024"};
-    out.push_back(x);
-  }
-  {  // Menton deviation: from the cranial mid-sagittal plane when there is one.
-    Interpretation x;
-    x.key = "menton_deviation";
-    const double d = in.menton_to_plane_mm;
-    x.value_text = std::isfinite(d) ? fixed(std::abs(d), 2) + " mm" : "n/a";
-    x.banded_value = std::isfinite(d) ? std::abs(d) : kNaN;
-    x.band = classify(x.banded_value, kMentonThresholds);
-    if (in.menton_plane_cranial) {
-      x.title = "Menton deviation from the cranial midline";
-      x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the cranial mid-sagittal plane" +
-                                        (std::isfinite(in.menton_to_mandible_plane_mm)
-                                             ? "; " + fixed(std::abs(in.menton_to_mandible_plane_mm), 2) +
-                                                   " mm from the mandible's own plane"
-                                             : std::string())
-                                  : "menton not found";
-      x.meaning =
-          "Lateral distance of menton (lowest point of the chin) from the mirror plane of the skull above the "
-          "condyles: the chin's total deviation, as the cited studies measure it against the facial midline. The "
-          "mandible's own plane leans with a deformed mandible and would understate it.";
-    } else {
-      x.title = "Menton deviation from the plane";
-      x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the mandible's symmetry plane" : "menton not found";
-      x.meaning =
-          "Lateral distance of menton (lowest point of the chin) from the symmetry plane. The plane is fitted to the "
-          "mandible itself (the scan holds too little skull for a cranial plane), not to the cranial base or face as "
-          "in the cited studies, so this underestimates a chin deviation that the whole mandible shares.";
-    }
-    x.thresholds =
-        "below 2 mm typical; 2-4 mm mild (noticed by orthodontists); 4 mm and above marked (the threshold at which "
-        "orthodontists judge treatment needed, mean 4.28 mm, and the usual definition of an asymmetric group).";
-    x.sources = {"masuoka2007", "nur2016", "thai_chin"};
-    out.push_back(x);
-  }
+  x.thresholds =
+      "below 2 mm typical; 2-4 mm mild (noticed by orthodontists); 4 mm and above marked (the threshold at which "
+      "orthodontists judge treatment needed, mean 4.28 mm, and the usual definition of an asymmetric group).";
+  x.sources = {"masuoka2007", "nur2016", "thai_chin"};
+  return x;
+}
+
+}  // namespace
+
+// The four banded numbers, then two shown without a band, in display order.
+std::vector<Interpretation> interpret(const InterpretationInputs& in) {
+  std::vector<Interpretation> out = {saf_interpretation(in), mirror_interpretation(in), ramus_interpretation(in),
+                                     menton_interpretation(in)};
   // No published cut-off found for these two: shown, not banded.
   out.push_back(unbanded_difference("gonial_angle", "Gonial angle L\xE2\x88\x92R", in.gonial_L_deg, in.gonial_R_deg, 1,
                                     "\xC2\xB0", "Co\xE2\x80\x93Go\xE2\x80\x93Me", "Co, Go or Me missing on a side",
