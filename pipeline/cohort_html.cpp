@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "pipeline/cohort_files.h"
+#include "reports/html_page.h"
 #include "reports/interpretation.h"
 #include "reports/writers.h"
 
@@ -163,18 +164,6 @@ std::string study_row(const Study& s, const std::vector<std::string>& cells, con
   return h.str();
 }
 
-const char* const kCss =
-    "body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1400px;color:#1d2433;padding:0 1em}"
-    ".figs{display:grid;grid-template-columns:repeat(auto-fill,minmax(340px,1fr));gap:1em 1.5em}"
-    "figure{margin:0}figure svg{width:100%;height:auto}figcaption{font-size:.85em;color:#5a6475}"
-    "svg text{font-size:10px;fill:#1d2433}svg text.title{font-size:11px}svg .axis{stroke:#5a6475}"
-    "svg .bar{fill:#6a8cc7}svg line.band{stroke:#b04a4a;stroke-dasharray:4 3}svg text.band{fill:#b04a4a;font-size:9px}"
-    "svg .outlier{stroke:#e07b00;stroke-width:2}"
-    ".wrap{overflow-x:auto;max-width:100%}table{border-collapse:separate;border-spacing:0;font-size:.9em}"
-    "td,th{border-bottom:1px solid #dde3ec;padding:.25em .6em;text-align:right;white-space:nowrap;background:#fff}"
-    "td.l,th.l{text-align:left}th{background:#f2f5fa;position:sticky;top:0}"
-    ".id{position:sticky;left:0;z-index:1}.out-col{position:sticky;right:0;z-index:1;border-left:1px solid #dde3ec}"
-    "tr.bad td{background:#fde8e8}tr.qc td{background:#fdf1e0}tr.out td{background:#fff4e5}";
 
 }  // namespace
 
@@ -185,8 +174,7 @@ void write_cohort_html(const std::vector<Study>& studies, const Table& t, const 
   std::map<std::size_t, std::vector<std::string>> outliers;
   const std::string figs = distributions(t, outliers);
   std::ostringstream h;
-  h << "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>MandiSym cohort</title><style>" << kCss
-    << "</style></head><body>\n<h1>Cohort</h1>\n<p>" << studies.size() << " studies: " << n_ok << " complete, " << n_qc
+  h << "<h1>Cohort</h1>\n<p>" << studies.size() << " studies: " << n_ok << " complete, " << n_qc
     << " failed quality control (outputs written), " << studies.size() - n_ok - n_qc << " failed or not run."
     << (interrupted ? " <strong>Interrupted.</strong>" : "")
     << " Outliers: beyond 1.5 IQR of the cohort. Dashed lines: the interpretation bands' edges (docs/report.md).</p>\n"
@@ -196,8 +184,8 @@ void write_cohort_html(const std::vector<Study>& studies, const Table& t, const 
   for (const auto& c : t.columns) h << "<th>" << html_escape(c) << "</th>";
   h << "<th class=\"l out-col\">outlier in</th></tr>\n";
   for (std::size_t i = 0; i < studies.size(); ++i) h << study_row(studies[i], t.rows[i], outliers[i]);
-  h << "</table></div>\n</body></html>\n";
-  reports::write_text_atomic((out / "cohort.html").string(), h.str());
+  h << "</table></div>\n";
+  reports::write_text_atomic((out / "cohort.html").string(), reports::html_page("MandiSym cohort", h.str()));
 }
 
 }  // namespace ms::pipeline::cohort
