@@ -1,5 +1,5 @@
-// The skeleton shared by MandiSym's HTML pages (report.html, compare.html;
-// cohort.html can use it too): doctype, head with the title and the shared
+// The skeleton shared by MandiSym's HTML pages (report.html, compare.html,
+// cohort.html): doctype, head with the title and the shared
 // stylesheet inlined, body. The stylesheet is a real file,
 // reports/assets/mandisym.css, compiled in as a string at build time
 // (reports/CMakeLists.txt, embed_text.cmake). Pages stay self-contained.
