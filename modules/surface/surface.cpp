@@ -8,7 +8,7 @@
 #include <vtkImageData.h>
 #include <vtkImageGaussianSmooth.h>
 #include <vtkIntArray.h>
-#include <vtkPLYWriter.h>
+
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
@@ -699,13 +699,37 @@ void write_stl(const Mesh& mesh, const std::string& path) {
   write_file_atomic(path, out);
 }
 
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "write_ply and write_stl write host-order bytes as little endian");
+
+// Binary little-endian PLY 1.0: float32 x y z per vertex, then per face a
+// uchar count (3) and three int32 vertex indices. Written by us: VTK 9.1's
+// vtkPLYWriter writes nothing at all into its output string in binary mode.
 void write_ply(const Mesh& mesh, const std::string& path) {
-  auto w = Ptr<vtkPLYWriter>::New();
-  w->WriteToOutputStringOn();
-  w->SetInputData(to_polydata(mesh));
-  w->SetFileTypeToBinary();
-  if (!w->Write()) throw Error(ExitCode::OutputFailed, path + ": cannot write PLY");
-  write_file_atomic(path, w->GetOutputString());
+  if (mesh.vertices.size() > 0x7fffffffull) throw Error(ExitCode::OutputFailed, path + ": too many vertices for PLY");
+  std::string out = "ply\nformat binary_little_endian 1.0\ncomment MandiSym mandible surface, patient LPS, mm\nelement vertex " +
+                    std::to_string(mesh.vertices.size()) + "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+                    std::to_string(mesh.faces.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::size_t header = out.size();
+  out.resize(header + 12 * mesh.vertices.size() + 13 * mesh.faces.size());
+  char* at = out.data() + header;
+  const auto put = [&at](const void* p, std::size_t n) {  // x86-64 and arm64 are little endian, as the header says
+    std::memcpy(at, p, n);
+    at += n;
+  };
+  for (const Vec3& v : mesh.vertices)
+    for (int k = 0; k < 3; ++k) {
+      const float f = static_cast<float>(v[k]);
+      put(&f, 4);
+    }
+  for (const auto& f : mesh.faces) {
+    const unsigned char three = 3;
+    put(&three, 1);
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t i = static_cast<std::int32_t>(f[k]);
+      put(&i, 4);
+    }
+  }
+  write_file_atomic(path, out);
 }
 
 Mesh read_vtp(const std::string& path) {

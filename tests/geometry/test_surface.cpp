@@ -21,6 +21,13 @@
 #include "core/types.h"
 #include "phantom/phantom.h"
 
+#include <vtkCellArray.h>
+#include <vtkNew.h>
+#include <vtkPLYReader.h>
+#include <vtkPolyData.h>
+
+#include <filesystem>
+
 namespace {
 
 using ms::Vec3;
@@ -786,4 +793,30 @@ TEST(Surface, ClosingByDistanceTransformsEqualsTheBallClosing) {
     EXPECT_EQ(differ, 0u) << "r " << r;
     if (r > 2.5) EXPECT_GT(set, 40u);  // the closing joined seeds: more voxels than it was given
   }
+}
+
+// mandible.ply: a binary PLY that VTK's own reader loads with every vertex
+// and triangle as written (VTK 9.1's writer left the file empty).
+TEST(Surface, PlyReadsBackThroughVtksReader) {
+  ms::Mesh m;
+  m.vertices = {{0, 0, 0}, {10.5, 0, 0}, {0, 20.25, 0}, {0, 0, -30.125}};
+  m.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  const std::string path = (std::filesystem::temp_directory_path() / "mandisym_test_tetra.ply").string();
+  ms::surface::write_ply(m, path);
+  vtkNew<vtkPLYReader> r;
+  r->SetFileName(path.c_str());
+  r->Update();
+  vtkPolyData* pd = r->GetOutput();
+  ASSERT_EQ(pd->GetNumberOfPoints(), 4);
+  ASSERT_EQ(pd->GetNumberOfPolys(), 4);
+  for (vtkIdType i = 0; i < 4; ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_FLOAT_EQ(pd->GetPoint(i)[k], m.vertices[static_cast<std::size_t>(i)][k]);
+  vtkIdType n = 0;
+  const vtkIdType* ids = nullptr;
+  pd->GetPolys()->InitTraversal();
+  for (std::size_t f = 0; pd->GetPolys()->GetNextCell(n, ids); ++f) {
+    ASSERT_EQ(n, 3);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(ids[k], m.faces[f][k]);
+  }
+  std::filesystem::remove(path);
 }
