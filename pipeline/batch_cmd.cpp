@@ -25,6 +25,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/files.h"
 #include "core/json_text.h"
 #include "core/memory.h"
 #include "pipeline/batch_support.h"
@@ -208,12 +209,8 @@ void make_ids_unique(std::vector<Study>& studies) {
 }
 
 bool complete(const fs::path& dir) {
-  std::ifstream f(dir / "results.json");
-  if (!f) return false;
-  std::stringstream s;
-  s << f.rdbuf();
   try {
-    const Json v = parse_json(s.str());
+    const Json v = parse_json(read_file_or_empty((dir / "results.json").string()));
     return v.contains("schema_version") && v.contains("scores");
   } catch (const std::exception&) {
     return false;
@@ -235,12 +232,6 @@ std::string first_error_line(const std::string& text) {
   return last;
 }
 
-std::string slurp_text(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 // All a descriptor holds (a study's memfd log), from its start.
 std::string read_fd(int fd) {
@@ -367,7 +358,7 @@ void police(std::map<pid_t, Child>& running) {
 // gives 124 on expiry, 128+N for a signal) when there is one.
 void record_unfinished(Study& s, const fs::path& out) {
   s.status = "failed";
-  const std::string log = slurp_text(out / ".logs" / (s.id + ".log"));
+  const std::string log = read_file_or_empty((out / ".logs" / (s.id + ".log")).string());
   s.error = first_error_line(log);
   std::ifstream f(out / ".done" / s.id);
   int rc = -1;

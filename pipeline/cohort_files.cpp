@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/files.h"
 #include "core/json_text.h"
 #include "pipeline/cohort_stats.h"
 #include "reports/interpretation.h"
@@ -52,12 +53,6 @@ std::string fmt(double v, int prec = 3) {
   return b;
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 // The text of a results.json field ("" when absent or null).
 std::string field_text(const Json& results, const std::vector<const char*>& path) {
@@ -131,7 +126,7 @@ Table read_results(const std::vector<Study>& studies, const fs::path& out) {
   for (const Study& s : studies) {
     std::vector<std::string> row(t.columns.size());
     if (s.has_result()) {
-      std::istringstream csv(slurp(out / s.id / "results.csv"));
+      std::istringstream csv(read_file_or_empty((out / s.id / "results.csv").string()));
       std::string h, r;
       if (std::getline(csv, h) && std::getline(csv, r)) {
         const auto hc = split_csv_line(h), rc = split_csv_line(r);
@@ -141,7 +136,7 @@ Table read_results(const std::vector<Study>& studies, const fs::path& out) {
         }
       }
       try {
-        const Json results = parse_json(slurp(out / s.id / "results.json"));
+        const Json results = parse_json(read_file_or_empty((out / s.id / "results.json").string()));
         std::size_t c = results_columns.size() - 2;
         for (const auto& [column, path] : kResultsJsonColumns) row[c++] = field_text(results, path);
       } catch (const std::exception&) {

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "core/error.h"
 
@@ -24,6 +25,13 @@ void write_file_atomic(const std::string& path, const std::string& bytes) {
     std::filesystem::remove(tmp, ec);
     throw Error(ExitCode::OutputFailed, path + ": cannot write: " + ec.message());
   }
+}
+
+std::string read_file_or_empty(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
 }
 
 }  // namespace ms

@@ -12,4 +12,8 @@ namespace ms {
 // the old file or the whole new one). Throws ms::Error(OutputFailed).
 void write_file_atomic(const std::string& path, const std::string& bytes);
 
+// The whole content of a file ("" when it cannot be opened: for files that
+// may legitimately be absent, such as a study's log).
+std::string read_file_or_empty(const std::string& path);
+
 }  // namespace ms

@@ -868,12 +868,18 @@ TEST(EndToEnd, CompareMeasuresTheChangeBetweenTwoScans) {
 
 namespace {
 
-TEST(EndToEnd, BatchRunsEveryStudyRecordsFailuresAndResumes) {
-  const fs::path src = temp_dir("batch_src"), out = temp_dir("batch_out");
+// A cohort folder `src` of two sample studies: sym (symmetric) and ramus4.
+void link_two_sample_studies(const fs::path& src) {
   const fs::path samples = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
   fs::create_directories(src);
   fs::create_directory_symlink(samples / "symmetric" / "dicom", src / "sym");
   fs::create_directory_symlink(samples / "ramus_L_plus4mm" / "dicom", src / "ramus4");
+}
+
+TEST(EndToEnd, BatchRunsEveryStudyRecordsFailuresAndResumes) {
+  const fs::path src = temp_dir("batch_src"), out = temp_dir("batch_out");
+  const fs::path samples = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
+  link_two_sample_studies(src);
   fs::create_directories(src / "not_dicom");
   std::ofstream(src / "not_dicom" / "notes.txt") << "not an image\n";
   std::string err;
@@ -935,10 +941,7 @@ TEST(EndToEnd, ThreadCountDoesNotChangeTheNumbers) {
 // what each study was given; bad options are refused before any study starts.
 TEST(EndToEnd, BatchPassesRunOptionsAndCsvColumnsOverrideThem) {
   const fs::path src = temp_dir("batchopt_src"), out = temp_dir("batchopt_out");
-  const fs::path samples = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom";
-  fs::create_directories(src);
-  fs::create_directory_symlink(samples / "symmetric" / "dicom", src / "sym");
-  fs::create_directory_symlink(samples / "ramus_L_plus4mm" / "dicom", src / "ramus4");
+  link_two_sample_studies(src);
   std::ofstream(src / "list.csv") << "id,path,hu_offset,orientation,group\nsym,sym,,,control\nramus4,ramus4,5,,case\n";
   const std::string list = (src / "list.csv").string();
   std::string err;
