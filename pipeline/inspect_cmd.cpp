@@ -37,86 +37,74 @@ std::string shorten(const std::string& uid, std::size_t n) {
 
 }  // namespace
 
-int inspect_command(const cli::Args& a) {
-  const std::string path = a.positional.at(0);
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file or directory");
-  const std::string lower_path = [&] {
-    std::string l = path;
-    for (auto& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return l;
-  }();
-  const bool volume_file = !fs::is_directory(path, ec) &&
-                           (lower_path.find(".nii") != std::string::npos || lower_path.find(".nrrd") != std::string::npos ||
-                            lower_path.find(".nhdr") != std::string::npos || lower_path.find(".mha") != std::string::npos ||
-                            lower_path.find(".mhd") != std::string::npos);
-  if (volume_file) {
-    const io::LoadedScan s = io::read_scan(path);
-    const Geometry& g = s.volume.geom;
-    float mn = 1e30f, mx = -1e30f;
-    for (float v : s.volume.hu) mn = std::min(mn, v), mx = std::max(mx, v);
-    if (a.has("json")) {
-      auto o = Json::object();
-      o["path"] = path;
-      o["kind"] = s.info.kind;
-      o["size_voxels"] = json_numbers(g.size);
-      o["spacing_mm"] = json_numbers(g.spacing);
-      o["origin_mm"] = json_numbers(g.origin);
-      o["direction"] = json_numbers(g.direction);
-      o["value_range"] = json_numbers(std::array<double, 2>{mn, mx});
-      o["warnings"] = Json::array();
-      for (const auto& w : s.info.warnings) o["warnings"].push_back(w);
-      std::cout << dump_json(o) << "\n";
-    } else {
-      std::printf("%s: %s volume, %zu x %zu x %zu voxels, spacing %.3f x %.3f x %.3f mm, values %.0f..%.0f\n", path.c_str(),
-                  s.info.kind.c_str(), g.size[0], g.size[1], g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], mn, mx);
-      for (const auto& w : s.info.warnings) std::printf("  warning: %s\n", w.c_str());
-    }
-    return 0;
-  }
+namespace {
 
-  const io::dicom::ScanResult sc = io::dicom::scan(path);
-  std::vector<io::dicom::Layout> layouts;
-  for (const auto& s : sc.series) layouts.push_back(io::dicom::analyse(s));
-  std::string why;
-  const int chosen = io::dicom::choose(sc, layouts, &why);
-  if (a.has("json")) {
+// A volume file (NIfTI, NRRD, MetaImage) rather than a DICOM folder or file.
+bool is_volume_file(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return false;
+  std::string l = path;
+  for (auto& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* ext : {".nii", ".nrrd", ".nhdr", ".mha", ".mhd"})
+    if (l.find(ext) != std::string::npos) return true;
+  return false;
+}
+
+std::array<double, 2> value_range(const Volume& v) {
+  float mn = 1e30f, mx = -1e30f;
+  for (float x : v.hu) mn = std::min(mn, x), mx = std::max(mx, x);
+  return {mn, mx};
+}
+
+// A volume file: its grid, value range and reading warnings.
+int inspect_volume(const std::string& path, bool json) {
+  const io::LoadedScan s = io::read_scan(path);
+  const Geometry& g = s.volume.geom;
+  const auto range = value_range(s.volume);
+  if (json) {
     auto o = Json::object();
     o["path"] = path;
-    o["files"] = sc.files_seen;
-    o["dicom_files"] = sc.dicom_files;
-    o["non_image_dicom_files"] = sc.non_image_files;
-    o["series"] = Json::array();
-    for (std::size_t i = 0; i < sc.series.size(); ++i) {
-      const auto& s = sc.series[i];
-      const auto& L = layouts[i];
-      auto e = Json::object();
-      e["label"] = s.label;
-      e["series_uid"] = s.uid;
-      e["modality"] = s.modality;
-      e["description"] = s.description;
-      e["images"] = s.frames.size();
-      e["files"] = s.files.size();
-      e["rows"] = s.frames.empty() ? 0u : s.frames[0].rows;
-      e["columns"] = s.frames.empty() ? 0u : s.frames[0].cols;
-      e["pixel_spacing_mm"] = s.frames.empty() ? Json() : json_numbers(std::array<double, 2>{s.frames[0].spacing_i, s.frames[0].spacing_j});
-      e["slice_spacing_mm"] = L.usable ? Json(L.nominal_spacing) : Json();
-      e["orientation"] = L.orientation;
-      e["tilt_deg"] = L.tilt_deg;
-      e["extent_mm"] = L.extent_mm;
-      e["usable"] = L.usable;
-      e["problem"] = L.problem;
-      e["warnings"] = Json::array();
-      for (const auto& w : L.warnings) e["warnings"].push_back(w);
-      e["chosen"] = static_cast<int>(i) == chosen;
-      o["series"].push_back(e);
-    }
-    o["choice"] = why;
+    o["kind"] = s.info.kind;
+    o["size_voxels"] = json_numbers(g.size);
+    o["spacing_mm"] = json_numbers(g.spacing);
+    o["origin_mm"] = json_numbers(g.origin);
+    o["direction"] = json_numbers(g.direction);
+    o["value_range"] = json_numbers(range);
+    o["warnings"] = Json::array();
+    for (const auto& w : s.info.warnings) o["warnings"].push_back(w);
     std::cout << dump_json(o) << "\n";
-    return chosen >= 0 ? 0 : static_cast<int>(ExitCode::InputInvalid);
+    return 0;
   }
-  std::printf("%s: %zu file(s), %zu DICOM, %zu non-image DICOM, %zu image series\n", path.c_str(), sc.files_seen,
-              sc.dicom_files, sc.non_image_files, sc.series.size());
+  std::printf("%s: %s volume, %zu x %zu x %zu voxels, spacing %.3f x %.3f x %.3f mm, values %.0f..%.0f\n", path.c_str(),
+              s.info.kind.c_str(), g.size[0], g.size[1], g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], range[0], range[1]);
+  for (const auto& w : s.info.warnings) std::printf("  warning: %s\n", w.c_str());
+  return 0;
+}
+
+Json series_json(const io::dicom::Series& s, const io::dicom::Layout& L, bool chosen) {
+  auto e = Json::object();
+  e["label"] = s.label;
+  e["series_uid"] = s.uid;
+  e["modality"] = s.modality;
+  e["description"] = s.description;
+  e["images"] = s.frames.size();
+  e["files"] = s.files.size();
+  e["rows"] = s.frames.empty() ? 0u : s.frames[0].rows;
+  e["columns"] = s.frames.empty() ? 0u : s.frames[0].cols;
+  e["pixel_spacing_mm"] = s.frames.empty() ? Json() : json_numbers(std::array<double, 2>{s.frames[0].spacing_i, s.frames[0].spacing_j});
+  e["slice_spacing_mm"] = L.usable ? Json(L.nominal_spacing) : Json();
+  e["orientation"] = L.orientation;
+  e["tilt_deg"] = L.tilt_deg;
+  e["extent_mm"] = L.extent_mm;
+  e["usable"] = L.usable;
+  e["problem"] = L.problem;
+  e["warnings"] = Json::array();
+  for (const auto& w : L.warnings) e["warnings"].push_back(w);
+  e["chosen"] = chosen;
+  return e;
+}
+
+void print_series_table(const io::dicom::ScanResult& sc, const std::vector<io::dicom::Layout>& layouts, int chosen) {
   if (!sc.series.empty())
     std::printf("  %-2s %-24s %-4s %-20s %6s %9s %13s %6s %-8s %5s %7s  %s\n", "#", "series", "mod", "description", "images",
                 "matrix", "pixel mm", "slice", "orient", "tilt", "extent", "status");
@@ -132,19 +120,51 @@ int inspect_command(const cli::Args& a) {
                 L.usable ? "ok" : ("not usable: " + L.problem).c_str(), static_cast<int>(i) == chosen ? "  <- chosen" : "");
     for (const auto& w : L.warnings) std::printf("       note: %s\n", w.c_str());
   }
-  std::printf("%s %s\n", chosen >= 0 ? "run would use:" : "run would refuse:", why.c_str());
-  if (chosen >= 0 && a.has("load")) {
-    const auto t0 = std::chrono::steady_clock::now();
-    const io::LoadedScan s = io::read_scan(path);
-    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const Geometry& g = s.volume.geom;
-    float mn = 1e30f, mx = -1e30f;
-    for (float v : s.volume.hu) mn = std::min(mn, v), mx = std::max(mx, v);
-    std::printf("loaded: %zu x %zu x %zu voxels, spacing %.3f x %.3f x %.3f mm, HU %.0f..%.0f, %.2f s\n", g.size[0], g.size[1],
-                g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], mn, mx, secs);
-    for (const auto& w : s.info.warnings) std::printf("  warning: %s\n", w.c_str());
+}
+
+// --load: the chosen series read as run would read it, timed.
+void print_load(const std::string& path) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const io::LoadedScan s = io::read_scan(path);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const Geometry& g = s.volume.geom;
+  const auto range = value_range(s.volume);
+  std::printf("loaded: %zu x %zu x %zu voxels, spacing %.3f x %.3f x %.3f mm, HU %.0f..%.0f, %.2f s\n", g.size[0], g.size[1],
+              g.size[2], g.spacing[0], g.spacing[1], g.spacing[2], range[0], range[1], secs);
+  for (const auto& w : s.info.warnings) std::printf("  warning: %s\n", w.c_str());
+}
+
+}  // namespace
+
+int inspect_command(const cli::Args& a) {
+  const std::string path = a.positional.at(0);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(ExitCode::InputNotFound, path + ": no such file or directory");
+  if (is_volume_file(path)) return inspect_volume(path, a.has("json"));
+  const io::dicom::ScanResult sc = io::dicom::scan(path);
+  std::vector<io::dicom::Layout> layouts;
+  for (const auto& s : sc.series) layouts.push_back(io::dicom::analyse(s));
+  std::string why;
+  const int chosen = io::dicom::choose(sc, layouts, &why);
+  const int code = chosen >= 0 ? 0 : static_cast<int>(ExitCode::InputInvalid);
+  if (a.has("json")) {
+    auto o = Json::object();
+    o["path"] = path;
+    o["files"] = sc.files_seen;
+    o["dicom_files"] = sc.dicom_files;
+    o["non_image_dicom_files"] = sc.non_image_files;
+    o["series"] = Json::array();
+    for (std::size_t i = 0; i < sc.series.size(); ++i) o["series"].push_back(series_json(sc.series[i], layouts[i], static_cast<int>(i) == chosen));
+    o["choice"] = why;
+    std::cout << dump_json(o) << "\n";
+    return code;
   }
-  return chosen >= 0 ? 0 : static_cast<int>(ExitCode::InputInvalid);
+  std::printf("%s: %zu file(s), %zu DICOM, %zu non-image DICOM, %zu image series\n", path.c_str(), sc.files_seen,
+              sc.dicom_files, sc.non_image_files, sc.series.size());
+  print_series_table(sc, layouts, chosen);
+  std::printf("%s %s\n", chosen >= 0 ? "run would use:" : "run would refuse:", why.c_str());
+  if (chosen >= 0 && a.has("load")) print_load(path);
+  return code;
 }
 
 }  // namespace ms::pipeline
