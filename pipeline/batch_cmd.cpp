@@ -217,6 +217,21 @@ bool complete(const fs::path& dir) {
   }
 }
 
+// A complete study's status as its results.json says: `qc_failed` (exit 8,
+// every output written; docs/qc.md) when its quality control failed, else
+// `done-earlier`.
+void record_complete(Study& s, const fs::path& dir) {
+  s.status = "done-earlier", s.exit_code = 0;
+  try {
+    const Json v = parse_json(read_file_or_empty((dir / "results.json").string()));
+    const Json* qc = find_member(v, "qc");
+    const Json* status = qc ? find_member(*qc, "status") : nullptr;
+    if (status && status->is_string() && status->get<std::string>() == "fail")
+      s.status = "qc_failed", s.exit_code = static_cast<int>(ExitCode::QcFailed), s.error = "quality control failed (see its report)";
+  } catch (const std::exception&) {
+  }
+}
+
 std::string self_exe() {
   std::error_code ec;
   const fs::path p = fs::read_symlink("/proc/self/exe", ec);
@@ -447,7 +462,7 @@ void run_studies(std::vector<Study>& studies, const cli::Args& args, LaunchPlan 
   while (true) {
     while (!g_interrupted && static_cast<int>(running.size()) < policy.jobs() && next < studies.size()) {
       Study& s = studies[next++];
-      if (s.status == "done-earlier") continue;
+      if (s.status != "pending") continue;  // complete before this run (done-earlier or qc_failed)
       plan.threads = policy.threads();
       plan.memory_share = own_memory_option || policy.budget_bytes == 0 ? 0 : policy.budget_bytes / static_cast<std::uint64_t>(policy.jobs());
       pid_t pid = -1;
@@ -515,7 +530,7 @@ int batch_command(const cli::Args& args) {
   std::size_t todo = 0;
   const bool aggregate_only = args.has("aggregate-only");
   for (auto& s : studies)
-    if (complete(out / s.id)) s.status = "done-earlier", s.exit_code = 0;
+    if (complete(out / s.id)) record_complete(s, out / s.id);
     else if (aggregate_only) record_unfinished(s, out);
     else ++todo;
   if (!aggregate_only) {

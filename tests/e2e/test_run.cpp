@@ -936,6 +936,30 @@ TEST(EndToEnd, ThreadCountDoesNotChangeTheNumbers) {
   for (const auto& d : {one, three}) fs::remove_all(d);
 }
 
+// A study that failed quality control (headsq read upside down: exit 8,
+// outputs written) stays `qc_failed` with exit code 8 when the cohort is
+// resumed or aggregated, and is not run again.
+TEST(EndToEnd, BatchKeepsAQcFailedStudyWhenResumed) {
+  if (headsq_nhdr().empty()) GTEST_SKIP() << "shared data not present";
+  const fs::path src = temp_dir("batchqc_src"), out = temp_dir("batchqc_out");
+  fs::create_directories(src);
+  std::ofstream(src / "list.csv") << "id,path\nhq," << headsq_nhdr() << "\n";
+  const std::string cmd = "batch " + (src / "list.csv").string() + " -o " + out.string() + " -q -- --hu-offset -1024 --no-figures";
+  std::string err;
+  ASSERT_EQ(run(cmd, &err), 9) << err;
+  const auto stamp = fs::last_write_time(out / "hq" / "results.json");
+  const std::string aggregate = "batch " + (src / "list.csv").string() + " -o " + out.string() + " -q --aggregate-only";
+  for (const std::string& again : {cmd, aggregate}) {
+    EXPECT_EQ(run(again, &err), 9) << err;
+    std::ifstream f(out / "cohort.csv");
+    std::string header, row;
+    std::getline(f, header), std::getline(f, row);
+    EXPECT_EQ(row.rfind("\"hq\",\"qc_failed\",8,", 0), 0u) << again << ": " << row;
+  }
+  EXPECT_EQ(fs::last_write_time(out / "hq" / "results.json"), stamp) << "a QC-failed study was run again";
+  for (const auto& d : {src, out}) fs::remove_all(d);
+}
+
 // `batch SRC -o OUT -- RUN OPTIONS`: the options after `--` reach every
 // study's run, a CSV's per-study columns override them, and cohort.csv records
 // what each study was given; bad options are refused before any study starts.
