@@ -12,7 +12,7 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "core/sha256.h"
+#include "core/digest.h"
 
 namespace fs = std::filesystem;
 

@@ -20,7 +20,7 @@
 #include "asymmetry/saf.h"
 #include "core/error.h"
 #include "core/memory.h"
-#include "core/sha256.h"
+#include "core/digest.h"
 #include "geometry/mesh_geometry.h"
 #include "io/volume_io.h"
 #include "landmarks/landmarks.h"

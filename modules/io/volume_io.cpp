@@ -38,7 +38,7 @@
 #include "core/array_order.h"
 #include "core/error.h"
 #include "core/memory.h"
-#include "core/sha256.h"
+#include "core/digest.h"
 #include "io/dicom.h"
 #include "io/itk_geometry.h"
 #include "io/volume_checks.h"

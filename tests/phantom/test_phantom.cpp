@@ -6,7 +6,7 @@
 #include <cmath>
 #include <limits>
 
-#include "core/sha256.h"
+#include "core/digest.h"
 #include "phantom/phantom.h"
 
 using namespace ms;

@@ -1,4 +1,4 @@
-#include "core/sha256.h"
+#include "core/digest.h"
 
 #include <gtest/gtest.h>
 
