@@ -160,7 +160,13 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
   chin_center_ = {p_.chin_deviation_mm, -75.0, -68.0};
   chin_axes_ = {12.0, 5.0, 8.0};
 
-  // ---- teeth: central incisor .. second molar, along each arch ----
+  place_teeth(base);
+  set_mandible_box();
+}
+
+// Teeth: central incisor .. second molar along each lower arch, and the upper
+// arch (the unmodified arch scaled up for overjet) above them.
+void Anatomy::place_teeth(const std::vector<sdf::P2>& base) {
   struct Kind {
     double md, bl, crown, root;
   };
@@ -211,6 +217,9 @@ Anatomy::Anatomy(const PhantomParams& p) : p_(p) {
     place(up, arch_t_[si], upper_k, +1.0, 1.045, upper_, si);
   }
 
+}
+
+void Anatomy::set_mandible_box() {
   // Box containing the mandible (with room for the asymmetry knobs).
   double grow = 0;
   for (const auto& a : p_.side)

@@ -73,6 +73,9 @@ class Anatomy {
   double z_lower(double t) const { return -76.0 + 20.0 * t; }
   double z_crest(double t) const;
   double z_occlusal(double t) const { return -34.0 + 7.0 * t; }
+  // Constructor steps: the teeth on both arches; the mandible's bounding box.
+  void place_teeth(const std::vector<sdf::P2>& base);
+  void set_mandible_box();
   double skull_base(const Vec3& p) const;
   double maxilla(const Vec3& p) const;
   double spine(const Vec3& p, bool cancellous) const;
