@@ -110,6 +110,22 @@ struct ScanInfo {
   std::vector<std::string> warnings;
 };
 
+// The DICOM series a volume was read from, as the DICOM writers reference it
+// (docs/pacs.md): UIDs, and every frame used, ordered along the slice normal.
+struct DicomSourceFrame {
+  std::string file;
+  unsigned frame = 0;  // 0-based index within a multi-frame file
+  std::string sop_instance_uid;
+  Vec3 ipp{0, 0, 0}, row_dir{1, 0, 0}, col_dir{0, 1, 0};  // LPS mm; direction of a row (i), of a column (j)
+  double spacing_i = 1, spacing_j = 1;                     // mm along row_dir, col_dir
+  unsigned rows = 0, cols = 0;
+};
+struct DicomSource {
+  std::string study_uid, series_uid, frame_of_reference_uid, sop_class_uid, modality;
+  std::string first_file;  // a file of the series, for the patient and study modules
+  std::vector<DicomSourceFrame> frames;
+};
+
 // Small vector helpers.
 inline Vec3 operator+(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
 inline Vec3 operator-(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }

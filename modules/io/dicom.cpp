@@ -666,6 +666,7 @@ void read_series_attributes(Series& s, const gdcm::File& file, const std::string
   const gdcm::DataSet& ds = file.GetDataSet();
   s.uid = uid;
   s.study_uid = str(ds, 0x0020, 0x000d);
+  s.frame_of_reference_uid = str(ds, 0x0020, 0x0052);
   s.modality = modality;
   s.description = str(ds, 0x0008, 0x103e);
   s.image_type = str(ds, 0x0008, 0x0008);
@@ -732,6 +733,7 @@ void add_file(const std::string& file, ScanResult& res, std::map<SeriesKey, Seri
   base.rows = rows;
   base.cols = cols;
   base.instance = static_cast<int>(std::lround(numbers(str(ds, 0x0020, 0x0013)).empty() ? 0 : numbers(str(ds, 0x0020, 0x0013))[0]));
+  base.sop_instance_uid = str(ds, 0x0008, 0x0018);
   read_geometry(ds, base);
   std::vector<Frame> frames = frames_of(ds, base);
   const std::string uid = str(ds, 0x0020, 0x000e);
@@ -1317,6 +1319,36 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
   for (std::size_t k = 0; k < L.order.size(); ++k)
     std::copy(decoded.hu[L.order[k]].begin(), decoded.hu[L.order[k]].end(), v.hu.begin() + k * plane);
   return v;
+}
+
+}  // namespace ms::io::dicom
+
+namespace ms::io::dicom {
+
+DicomSource source_of(const Series& series, const Layout& layout) {
+  DicomSource src;
+  src.study_uid = series.study_uid;
+  src.series_uid = series.uid;
+  src.frame_of_reference_uid = series.frame_of_reference_uid;
+  src.sop_class_uid = series.sop_class;
+  src.modality = series.modality;
+  for (const std::size_t i : layout.order) {
+    const Frame& f = series.frames[i];
+    DicomSourceFrame d;
+    d.file = f.file;
+    d.frame = f.frame;
+    d.sop_instance_uid = f.sop_instance_uid;
+    d.ipp = f.ipp;
+    d.row_dir = f.row_dir;
+    d.col_dir = f.col_dir;
+    d.spacing_i = f.spacing_i;
+    d.spacing_j = f.spacing_j;
+    d.rows = f.rows;
+    d.cols = f.cols;
+    src.frames.push_back(std::move(d));
+  }
+  if (!src.frames.empty()) src.first_file = src.frames.front().file;
+  return src;
 }
 
 }  // namespace ms::io::dicom

@@ -39,11 +39,13 @@ struct Frame {
   bool has_slope = false, has_intercept = false;  // the tag is present (value valid or not)
   std::string bad_value;  // "RescaleSlope 'inf'": a present tag whose value is unusable
   int instance = 0;
+  std::string sop_instance_uid;  // of the file holding the frame
 };
 
 struct Series {
   std::string uid, study_uid, modality, description, image_type, study_date, manufacturer, model, kernel;
   std::string photometric, transfer_syntax, sop_class;
+  std::string frame_of_reference_uid;
   std::string label;  // uid, or uid#n for a sub-stack
   unsigned bits_allocated = 16, bits_stored = 16, pixel_representation = 0, samples_per_pixel = 1;
   bool has_padding = false, has_padding_limit = false;
@@ -109,5 +111,9 @@ int choose(const ScanResult& scan, const std::vector<Layout>& layouts, std::stri
 // is refused before it is allocated (docs/ingest.md, "Memory budget").
 Volume assemble(const Series& series, const Layout& layout, std::vector<std::string>& warnings,
                 std::uint64_t memory_budget = 0);
+
+// The series as the DICOM writers reference it: its UIDs and the frames in
+// the layout's order (duplicates left out), each with its instance and geometry.
+DicomSource source_of(const Series& series, const Layout& layout);
 
 }  // namespace ms::io::dicom

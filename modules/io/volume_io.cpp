@@ -308,6 +308,7 @@ LoadedScan read_dicom(const std::string& path, const ReadOptions& opt) {
     scan.info.warnings.push_back(std::to_string(sc.special_files) + " entr" + (sc.special_files == 1 ? "y" : "ies") +
                                  " that are not regular files (FIFOs, devices, sockets) skipped, e.g. " + sc.first_special);
   scan.volume = dicom::assemble(s, layouts[chosen], scan.info.warnings, budget);
+  scan.dicom = dicom::source_of(s, layouts[chosen]);
   return scan;
 }
 

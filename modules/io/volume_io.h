@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,7 @@ struct ReadOptions {
 struct LoadedScan {
   Volume volume;
   ScanInfo info;
+  std::optional<DicomSource> dicom;  // the series read, when the input was DICOM
 };
 
 // Reads a DICOM folder (searched recursively) or a volume file (.nii, .nii.gz,

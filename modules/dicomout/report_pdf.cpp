@@ -1,0 +1,3 @@
+#include "dicomout/common.h"
+
+namespace ms::dicomout {}  // namespace ms::dicomout
