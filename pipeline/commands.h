@@ -13,6 +13,7 @@ const cli::CommandSpec& phantom_spec();
 const cli::CommandSpec& inspect_spec();
 const cli::CommandSpec& compare_spec();
 const cli::CommandSpec& batch_spec();
+const cli::CommandSpec& orthanc_spec();
 
 // Each returns the process exit code; errors are thrown as ms::Error.
 int run_command(const cli::Args& args, const std::string& command_line);
@@ -20,6 +21,7 @@ int phantom_command(const cli::Args& args);
 int inspect_command(const cli::Args& args);
 int compare_command(const cli::Args& args);
 int batch_command(const cli::Args& args);
+int orthanc_command(const cli::Args& args);
 
 const char* version();
 

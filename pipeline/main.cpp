@@ -15,13 +15,14 @@ void usage(std::ostream& o) {
   o << "mandisym " << ms::pipeline::version() << " - mandibular asymmetry from head CT\n\n"
     << "Usage: mandisym COMMAND [arguments] [options]\n\nCommands:\n";
   for (const auto* s : {&ms::pipeline::run_spec(), &ms::pipeline::batch_spec(), &ms::pipeline::compare_spec(), &ms::pipeline::inspect_spec(),
-                        &ms::pipeline::phantom_spec()})
+                        &ms::pipeline::orthanc_spec(), &ms::pipeline::phantom_spec()})
     o << "  " << s->name << std::string(10 - s->name.size(), ' ') << s->synopsis << "\n";
   o << "  version   Print the version.\n\n"
     << "mandisym COMMAND --help shows the options of a command.\n"
     << "Exit codes: 0 ok, 1 internal error, 2 usage, 3 input not found, 4 invalid input,\n"
     << "            5 no mandible found, 6 geometry failed, 7 cannot write output,\n"
-    << "            9 batch: some studies failed (cohort.csv), 130 interrupted.\n";
+    << "            8 result failed quality control (outputs written),\n"
+    << "            9 batch/orthanc: some studies failed, 130 interrupted.\n";
 }
 
 }  // namespace
@@ -49,6 +50,7 @@ int main(int argc, char** argv) {
     if (verb == "inspect") spec = &ms::pipeline::inspect_spec();
     if (verb == "compare") spec = &ms::pipeline::compare_spec();
     if (verb == "batch") spec = &ms::pipeline::batch_spec();
+    if (verb == "orthanc") spec = &ms::pipeline::orthanc_spec();
     if (!spec) throw ms::Error(ms::ExitCode::Usage, "unknown command '" + verb + "' (see mandisym --help)");
     const ms::cli::Args parsed = ms::cli::parse(*spec, args);
     if (parsed.has("help")) {
@@ -59,6 +61,7 @@ int main(int argc, char** argv) {
     if (verb == "inspect") return ms::pipeline::inspect_command(parsed);
     if (verb == "compare") return ms::pipeline::compare_command(parsed);
     if (verb == "batch") return ms::pipeline::batch_command(parsed);
+    if (verb == "orthanc") return ms::pipeline::orthanc_command(parsed);
     return ms::pipeline::phantom_command(parsed);
   } catch (const ms::Error& e) {
     std::cerr << "mandisym: error: " << e.what() << std::endl;

@@ -27,6 +27,7 @@
 #include "reports/render.h"
 #include "pipeline/commands.h"
 #include "pipeline/cranial.h"
+#include "pipeline/dicom_export.h"
 #include "threads/threads.h"
 #include "pipeline/staging.h"
 #include "liblog/library_log.h"
@@ -71,7 +72,9 @@ const cli::CommandSpec& run_spec() {
        {"no-figures", "", "do not write QC figures", ""},
        {"no-cranial", "", "do not fit the cranial mid-sagittal plane (bone above the condyles)", ""},
        {"deidentify", "", "leave out of every output the DICOM strings that can identify a study: UIDs, dates, "
-                          "descriptions, the input path", ""},
+                          "descriptions, the input path (dicom/ objects keep the UIDs that tie them to the CT; docs/pacs.md)", ""},
+       {"dicom", "", "DICOM input: also write dicom/seg.dcm (the mask as DICOM SEG), dicom/sr.dcm (TID 1500 measurement "
+                     "report) and dicom/report.dcm (report.pdf encapsulated), new series in the CT's study (docs/pacs.md)", ""},
        {"threads", "N", "threads this run may use (OpenMP, ITK, VTK); `batch` sets it per study; 0 = all", "0 (the cores this process may use)", 0, 1024},
        {"quiet", "", "print nothing but errors", ""},
        {"help", "", "show this help", ""}}};
@@ -476,6 +479,8 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   Progress progress(quiet, S.timings_s);
 
   const io::LoadedScan scan = ingest_stage(input, rs, deidentify, S);
+  if (args.has("dicom") && !scan.dicom)
+    throw Error(ExitCode::Usage, "--dicom needs a DICOM series as INPUT; " + input + " is a " + scan.info.kind + " file");
   progress.stage("ingest", 1);
   Staging staging(outdir);
 
@@ -533,6 +538,9 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   for (const auto& m : liblog::take_library_messages()) log += "library: " + m + "\n";
   progress.say(total);
   log += std::string(total) + "\n";
+  DicomExport dx{args.has("dicom") ? &*scan.dicom : nullptr, deidentify, args.has("mask"), S.tool_version};
+  for (const auto& line : write_pdf_and_dicom(staging.dir().string(), reports::results_json(S), seg.mask, fig.views, dx))
+    log += line + "\n";
   write_summaries(staging, S, fig, "mandisym " + S.tool_version + "\n" + logged_command + "\n" + log);
   staging.commit();
   if (!quiet) {

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include <dcmtk/dcmdata/dcuid.h>
+#include <dcmtk/oflog/oflog.h>
 
 #include "core/error.h"
 
@@ -53,6 +54,14 @@ void check(const OFCondition& cond, const std::string& context) {
   if (cond.bad()) throw Error(ExitCode::Internal, "DICOM output: " + context + ": " + cond.text());
 }
 
+void quiet_dcmtk() {
+  static const bool once = [] {
+    OFLog::configure(OFLogger::FATAL_LOG_LEVEL);  // conditions are reported through check()
+    return true;
+  }();
+  (void)once;
+}
+
 std::string new_uid() {
   char uid[100];
   dcmGenerateUniqueIdentifier(uid, SITE_INSTANCE_UID_ROOT);
@@ -60,6 +69,7 @@ std::string new_uid() {
 }
 
 StudyContext read_study_context(const DicomSource& source, bool deidentify, const std::string& tool_version) {
+  quiet_dcmtk();
   DcmFileFormat ff;
   const OFCondition c = ff.loadFileUntilTag(source.first_file.c_str(), EXS_Unknown, EGL_noChange, DCM_MaxReadLength, ERM_autoDetect,
                                             DCM_PixelData);

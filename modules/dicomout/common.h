@@ -10,6 +10,9 @@
 
 namespace ms::dicomout {
 
+// DCMTK's own log silenced (once per process): every condition is checked.
+void quiet_dcmtk();
+
 // A new UID under DCMTK's site root (dcmGenerateUniqueIdentifier).
 std::string new_uid();
 

@@ -46,6 +46,7 @@ struct Written {
 struct SegmentRef {
   std::string sop_class_uid, sop_instance_uid;
   unsigned segment_number = 1;
+  std::string series_instance_uid;  // the SEG's series: the SR lists the SEG in its evidence
 };
 
 // DICOM SEG (binary) of the mask on the source frames' pixel grids: one frame

@@ -115,12 +115,13 @@ Written write_seg(const Mask& mask, const DicomSource& source, const StudyContex
   if (source.frames.empty()) throw Error(ExitCode::Internal, "DICOM SEG: the source series has no frames");
   const DicomSourceFrame& first = source.frames.front();
   const IODGeneralEquipmentModule::EquipmentInfo equipment("MandiSym", "MandiSym", "mandisym", study.tool_version.c_str());
-  ContentIdentificationMacro content("1", "MANDIBLE", "Mandible segmentation", "MandiSym");
+  ContentIdentificationMacro content("1", "MANDIBLE", "Mandible segmentation", "MandiSym^Software");
   DcmSegmentation* raw = nullptr;
   check(DcmSegmentation::createBinarySegmentation(raw, static_cast<Uint16>(first.rows), static_cast<Uint16>(first.cols), equipment, content),
         "createBinarySegmentation");
   std::unique_ptr<DcmSegmentation> seg(raw);
   check(seg->importFromSourceImage(source.first_file.c_str()), "import patient, study and frame of reference from " + source.first_file);
+  check(seg->getSeries().setSeriesNumber("9701"), "SeriesNumber");
   const Uint16 segment = add_mandible_segment(*seg, mask_from_user, study.tool_version);
   add_shared_groups(*seg, source);
   std::vector<Uint8> pixels;

@@ -1,1 +1,138 @@
+// The DICOM SEG read back with plain dcmdata (not the dcmseg classes that
+// wrote it) and compared with the mask voxel for voxel in LPS world
+// coordinates, on the real sample series and on a re-oriented copy.
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
+#include "dicomout/dicomout.h"
+#include "io/volume_io.h"
+#include "tests/support/dicom_readback.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using ms::operator+;
+using ms::operator*;
+
+const fs::path kSample = fs::path(MANDISYM_SOURCE_DIR) / "sample_dicom" / "symmetric" / "dicom";
+
+fs::path scratch(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("mandisym_seg_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// The run's mask of the sample (made once by the binary).
+const ms::Mask& sample_mask() {
+  static const ms::Mask mask = [] {
+    const fs::path out = scratch("run");
+    const std::string cmd = std::string(MANDISYM_BINARY) + " run " + kSample.string() + " -o " + out.string() + " --quiet --no-figures";
+    const int rc = std::system(cmd.c_str());
+    EXPECT_EQ(rc, 0) << cmd;
+    return ms::io::read_mask((out / "mandible_mask.nii.gz").string());
+  }();
+  return mask;
+}
+
+std::string dump(const fs::path& file, const std::string& tool) {
+  const std::string out = (file.parent_path() / (tool + ".txt")).string();
+  std::system((tool + " " + file.string() + " > " + out + " 2>&1").c_str());
+  std::ifstream in(out);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+}  // namespace
+
+TEST(Seg, FramesEqualTheMaskVoxelForVoxelInWorldCoordinates) {
+  const ms::Mask& mask = sample_mask();
+  const ms::io::LoadedScan scan = ms::io::read_scan(kSample.string());
+  ASSERT_TRUE(scan.dicom.has_value());
+  const fs::path dir = scratch("world");
+  const auto study = ms::dicomout::read_study_context(*scan.dicom, false, "test");
+  const auto w = ms::dicomout::write_seg(mask, *scan.dicom, study, false, (dir / "seg.dcm").string());
+  EXPECT_EQ(w.sop_class_uid, UID_SegmentationStorage);
+  const ms::test::SegComparison c = ms::test::compare_seg_with_mask(w.path, mask);
+  EXPECT_GT(c.frames, 10u);
+  EXPECT_EQ(c.mismatches, 0u);
+  // The frames left out are empty: every mask voxel is in a frame.
+  EXPECT_EQ(c.set_pixels, mask.count());
+}
+
+TEST(Seg, CarriesTheStudyFrameOfReferenceAndTheMandibleCode) {
+  const ms::io::LoadedScan scan = ms::io::read_scan(kSample.string());
+  const fs::path dir = scratch("codes");
+  const auto study = ms::dicomout::read_study_context(*scan.dicom, false, "test");
+  const auto w = ms::dicomout::write_seg(sample_mask(), *scan.dicom, study, false, (dir / "seg.dcm").string());
+  DcmFileFormat ff;
+  ASSERT_TRUE(ff.loadFile(w.path.c_str()).good());
+  DcmDataset& ds = *ff.getDataset();
+  OFString v;
+  ds.findAndGetOFString(DCM_StudyInstanceUID, v);
+  EXPECT_EQ(v.c_str(), scan.dicom->study_uid);
+  ds.findAndGetOFString(DCM_FrameOfReferenceUID, v);
+  EXPECT_EQ(v.c_str(), scan.dicom->frame_of_reference_uid);
+  ds.findAndGetOFString(DCM_SeriesInstanceUID, v);
+  EXPECT_NE(v.c_str(), scan.dicom->series_uid);
+  DcmItem& type = ms::test::nested(ds, DCM_SegmentSequence, 0, DCM_SegmentedPropertyTypeCodeSequence);
+  type.findAndGetOFString(DCM_CodeValue, v);
+  EXPECT_EQ(v, "91609006");
+  DcmItem* segment = nullptr;
+  ds.findAndGetSequenceItem(DCM_SegmentSequence, segment, 0);
+  segment->findAndGetOFString(DCM_SegmentAlgorithmType, v);
+  EXPECT_EQ(v, "AUTOMATIC");
+  // Every frame derives from a CT instance of the source series.
+  DcmItem& deriv = ms::test::nested(ds, DCM_PerFrameFunctionalGroupsSequence, 0, DCM_DerivationImageSequence);
+  DcmItem* src = nullptr;
+  ASSERT_TRUE(deriv.findAndGetSequenceItem(DCM_SourceImageSequence, src, 0).good());
+  src->findAndGetOFString(DCM_ReferencedSOPInstanceUID, v);
+  bool found = false;
+  for (const auto& f : scan.dicom->frames) found = found || f.sop_instance_uid == v.c_str();
+  EXPECT_TRUE(found) << v;
+}
+
+TEST(Seg, DeidentifiedKeepsTheUidsAndEmptiesThePatient) {
+  const ms::io::LoadedScan scan = ms::io::read_scan(kSample.string());
+  const fs::path dir = scratch("deid");
+  const auto study = ms::dicomout::read_study_context(*scan.dicom, true, "test");
+  const auto w = ms::dicomout::write_seg(sample_mask(), *scan.dicom, study, true, (dir / "seg.dcm").string());
+  DcmFileFormat ff;
+  ASSERT_TRUE(ff.loadFile(w.path.c_str()).good());
+  DcmDataset& ds = *ff.getDataset();
+  OFString v;
+  EXPECT_TRUE(ds.findAndGetOFString(DCM_PatientName, v).good());  // type 2: present, empty
+  EXPECT_TRUE(v.empty()) << v;
+  ds.findAndGetOFString(DCM_PatientID, v);
+  EXPECT_TRUE(v.empty()) << v;
+  ds.findAndGetOFString(DCM_StudyDate, v);
+  EXPECT_TRUE(v.empty()) << v;
+  EXPECT_FALSE(ds.tagExists(DCM_StudyDescription));
+  ds.findAndGetOFString(DCM_PatientIdentityRemoved, v);
+  EXPECT_EQ(v, "YES");
+  ds.findAndGetOFString(DCM_StudyInstanceUID, v);
+  EXPECT_EQ(v.c_str(), scan.dicom->study_uid);
+  DcmItem* segment = nullptr;
+  ds.findAndGetSequenceItem(DCM_SegmentSequence, segment, 0);
+  segment->findAndGetOFString(DCM_SegmentAlgorithmType, v);
+  EXPECT_EQ(v, "MANUAL");  // mask_from_user
+}
+
+TEST(Seg, ParsesAndHasNoIodErrors) {
+  const ms::io::LoadedScan scan = ms::io::read_scan(kSample.string());
+  const fs::path dir = scratch("iod");
+  const auto study = ms::dicomout::read_study_context(*scan.dicom, false, "test");
+  const auto w = ms::dicomout::write_seg(sample_mask(), *scan.dicom, study, false, (dir / "seg.dcm").string());
+  if (std::system("command -v dcmdump > /dev/null") == 0) EXPECT_NE(dump(w.path, "dcmdump").find("SegmentSequence"), std::string::npos);
+  if (std::system("command -v dciodvfy > /dev/null") != 0) GTEST_SKIP() << "dciodvfy (dicom3tools) not installed";
+  const std::string report = dump(w.path, "dciodvfy");
+  EXPECT_EQ(report.find("Error"), std::string::npos) << report;
+}
