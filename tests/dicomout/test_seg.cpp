@@ -136,3 +136,37 @@ TEST(Seg, ParsesAndHasNoIodErrors) {
   const std::string report = dump(w.path, "dciodvfy");
   EXPECT_EQ(report.find("Error"), std::string::npos) << report;
 }
+
+// The sample stored as sagittal slices (a different ImageOrientationPatient
+// and slice axis): the SEG still holds the run's mask exactly.
+TEST(Seg, SagittalSeriesGivesTheMaskExactly) {
+  const ms::io::LoadedScan axial = ms::io::read_scan(kSample.string());
+  const ms::Geometry& g = axial.volume.geom;
+  ms::Volume sag;
+  const int perm[3] = {1, 2, 0};  // new index axis a is old axis perm[a]
+  for (int a = 0; a < 3; ++a) {
+    sag.geom.size[a] = g.size[perm[a]];
+    sag.geom.spacing[a] = g.spacing[perm[a]];
+    for (int r = 0; r < 3; ++r) sag.geom.direction[r * 3 + a] = g.direction[r * 3 + perm[a]];
+  }
+  sag.geom.origin = g.origin;
+  sag.hu.resize(g.voxel_count());
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) sag.hu[sag.geom.linear(j, k, i)] = axial.volume.hu[g.linear(i, j, k)];
+  const fs::path dir = scratch("sagittal");
+  ms::io::DicomSeriesSpec spec;
+  ms::io::write_dicom_series(sag, spec, (dir / "dicom").string());
+  const std::string cmd = std::string(MANDISYM_BINARY) + " run " + (dir / "dicom").string() + " -o " + (dir / "out").string() +
+                          " --quiet --no-figures --dicom";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  const ms::Mask mask = ms::io::read_mask((dir / "out" / "mandible_mask.nii.gz").string());
+  const ms::io::LoadedScan scan = ms::io::read_scan((dir / "dicom").string());
+  EXPECT_NE(scan.dicom->frames.front().row_dir, axial.dicom->frames.front().row_dir);
+  const ms::test::SegComparison c = ms::test::compare_seg_with_mask((dir / "out" / "dicom" / "seg.dcm").string(), mask);
+  EXPECT_GT(c.frames, 10u);
+  EXPECT_EQ(c.mismatches, 0u);
+  EXPECT_EQ(c.set_pixels, mask.count());
+  // The same mandible as the axial run: the mask volumes agree.
+  EXPECT_NEAR(static_cast<double>(mask.count()), static_cast<double>(sample_mask().count()), 0.01 * sample_mask().count());
+}
