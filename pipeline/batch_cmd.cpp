@@ -232,22 +232,6 @@ void record_complete(Study& s, const fs::path& dir) {
   }
 }
 
-std::string self_exe() {
-  std::error_code ec;
-  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
-  return ec ? std::string("mandisym") : p.string();
-}
-
-std::string first_error_line(const std::string& text) {
-  std::istringstream f(text);
-  std::string line, last;
-  while (std::getline(f, line))
-    if (line.find("error") != std::string::npos) return line;
-    else if (!line.empty()) last = line;
-  return last;
-}
-
-
 // All a descriptor holds (a study's memfd log), from its start.
 std::string read_fd(int fd) {
   std::string out;
@@ -328,7 +312,7 @@ void finish(Study& s, Child& c, int st, const fs::path& out, bool deidentify) {
   reports::write_text_atomic((out / ".logs" / (s.id + ".log")).string(), log);
   s.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   s.signal = WIFSIGNALED(st) ? WTERMSIG(st) : 0;
-  const std::string line = first_error_line(log);
+  const std::string line = bs::first_error_line(log);
   if (c.timed_out) {
     s.status = "timeout";
     char b[160];
@@ -374,7 +358,7 @@ void police(std::map<pid_t, Child>& running) {
 void record_unfinished(Study& s, const fs::path& out) {
   s.status = "failed";
   const std::string log = read_file_or_empty((out / ".logs" / (s.id + ".log")).string());
-  s.error = first_error_line(log);
+  s.error = bs::first_error_line(log);
   std::ifstream f(out / ".done" / s.id);
   int rc = -1;
   double secs = -1;
@@ -535,7 +519,7 @@ int batch_command(const cli::Args& args) {
     else ++todo;
   if (!aggregate_only) {
     LaunchPlan plan;
-    plan.exe = self_exe();
+    plan.exe = bs::self_exe();
     plan.out = out;
     plan.deidentify = args.has("deidentify");
     plan.common = args.passthrough;

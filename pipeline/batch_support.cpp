@@ -96,4 +96,20 @@ std::string scrub(const std::string& text, const std::vector<std::string>& ident
   return s;
 }
 
+std::string self_exe() {
+  std::error_code ec;
+  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string("mandisym") : p.string();
+}
+
+std::string first_error_line(const std::string& text) {
+  std::istringstream f(text);
+  std::string line, last;
+  while (std::getline(f, line))
+    if (line.find("error") != std::string::npos) return line;
+    else if (!line.empty()) last = line;
+  return last;
+}
+
+
 }  // namespace ms::pipeline::batch_support

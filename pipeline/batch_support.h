@@ -45,4 +45,10 @@ std::string scrub(const std::string& text, const std::vector<std::string>& ident
 // The strings `scrub` replaces for a study given by path p with name `name`.
 std::vector<std::string> identifying_strings(const std::filesystem::path& p, const std::string& name);
 
+// This executable's path (for starting `mandisym run`); "mandisym" when unknown.
+std::string self_exe();
+// The line of a study's log that says why it failed: the first line naming an
+// error, else the last non-empty line.
+std::string first_error_line(const std::string& log);
+
 }  // namespace ms::pipeline::batch_support

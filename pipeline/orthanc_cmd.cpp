@@ -19,6 +19,7 @@
 #include "core/error.h"
 #include "core/files.h"
 #include "core/json_text.h"
+#include "pipeline/batch_support.h"
 #include "pipeline/commands.h"
 #include "pipeline/orthanc_client.h"
 #include "reports/writers.h"
@@ -92,27 +93,11 @@ void save_last_seq(const Service& s, long long seq) {
   reports::write_text_atomic((s.work / "state.json").string(), dump_json(j, 1) + "\n");
 }
 
-std::string self_exe() {
-  std::error_code ec;
-  const fs::path p = fs::read_symlink("/proc/self/exe", ec);
-  return ec ? std::string("mandisym") : p.string();
-}
-
-// The line of a run's log that says why it failed.
-std::string error_line(const std::string& log) {
-  std::istringstream in(log);
-  std::string line, last;
-  while (std::getline(in, line))
-    if (line.find("error") != std::string::npos || line.find("quality control") != std::string::npos) return line;
-    else if (!line.empty()) last = line;
-  return last;
-}
-
 // `mandisym run IN -o OUT --dicom -q [options]` in its own process group,
 // killed after the timeout; returns its exit code (124 on timeout, 128 + N
 // for a signal, as timeout(1) reports them).
 int run_study(const Service& s, const fs::path& in, const fs::path& out, const fs::path& log) {
-  std::vector<std::string> a = {self_exe(), "run", in.string(), "-o", out.string(), "--dicom", "-q"};
+  std::vector<std::string> a = {batch_support::self_exe(), "run", in.string(), "-o", out.string(), "--dicom", "-q"};
   a.insert(a.end(), s.run_options.begin(), s.run_options.end());
   std::vector<char*> argv;
   for (auto& x : a) argv.push_back(x.data());
@@ -206,7 +191,7 @@ bool process_series(const Service& s, const std::string& series) {
   const std::string n = "instances=" + std::to_string(count) + " ";
   const std::string log = read_file_or_empty((s.work / "logs" / (series + ".log")).string());
   if (rc != 0 && rc != static_cast<int>(ExitCode::QcFailed))
-    return record(s, series, "failed " + n + "exit=" + std::to_string(rc) + " " + error_line(log)), false;
+    return record(s, series, "failed " + n + "exit=" + std::to_string(rc) + " " + batch_support::first_error_line(log)), false;
   const std::string ids = store_outputs(s, out, study);
   char secs[32];
   std::snprintf(secs, sizeof secs, " seconds=%.1f", std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
