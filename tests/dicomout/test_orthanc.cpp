@@ -112,6 +112,31 @@ Orthanc start_orthanc(const fs::path& dir) {
   return o;
 }
 
+// Orthanc started and answering with the test user (a test failure otherwise).
+bool wait_until_up(const ms::pipeline::OrthancClient& pacs) {
+  for (int k = 0; k < 100; ++k) {
+    try {
+      if (pacs.get_json("/system").contains("Version")) return true;
+    } catch (const std::exception&) {
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return false;
+}
+
+pid_t start_node(const Orthanc& o) {
+  return spawn({MANDISYM_BINARY, "orthanc", "--url", o.url(), "--credentials", (o.dir / "credentials").string(), "--work",
+                (o.dir / "work").string(), "--poll", "0.5"},
+               o.dir / "node.log");
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("mandisym_orthanc_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
 // The study's series by modality, once SEG, SR and DOC are all there (or the deadline passed).
 std::map<std::string, std::string> wait_for_outputs(const ms::pipeline::OrthancClient& pacs, double deadline_s) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -140,24 +165,12 @@ std::string tool_output(const std::string& cmd, int* rc) {
 
 TEST(OrthancRoundTrip, StoredCtComesBackWithSegSrAndReportInItsStudy) {
   if (!have("Orthanc") || !have("storescu")) GTEST_SKIP() << "Orthanc or storescu not installed (scripts/install-deps)";
-  const fs::path dir = fs::temp_directory_path() / ("mandisym_orthanc_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_dir("roundtrip");
   Orthanc orthanc = start_orthanc(dir);
   const ms::pipeline::OrthancClient pacs(orthanc.url(), "mandisym:test-secret");
-  bool up = false;
-  for (int k = 0; k < 100 && !up; ++k) {
-    try {
-      up = pacs.get_json("/system").contains("Version");
-    } catch (const std::exception&) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-  }
-  ASSERT_TRUE(up) << ms::read_file_or_empty((dir / "orthanc.log").string());
+  ASSERT_TRUE(wait_until_up(pacs)) << ms::read_file_or_empty((dir / "orthanc.log").string());
   // The node is started first, as a hospital would run it, then the CT arrives.
-  const pid_t node = spawn({MANDISYM_BINARY, "orthanc", "--url", orthanc.url(), "--credentials", (dir / "credentials").string(), "--work",
-                            (dir / "work").string(), "--poll", "0.5"},
-                           dir / "node.log");
+  const pid_t node = start_node(orthanc);
   const auto t0 = std::chrono::steady_clock::now();
   int rc = 0;
   const std::string sent = tool_output("TCP_NODELAY=1 storescu -xs -aec ORTHANC 127.0.0.1 " + std::to_string(orthanc.dicom) + " +sd " +
@@ -216,5 +229,44 @@ TEST(OrthancRoundTrip, StoredCtComesBackWithSegSrAndReportInItsStudy) {
   EXPECT_TRUE(stop(orthanc.pid)) << "Orthanc did not stop on SIGTERM";
   EXPECT_NE(::kill(node, 0), 0);
   EXPECT_NE(::kill(orthanc.pid, 0), 0);
+  fs::remove_all(dir);
+}
+
+TEST(OrthancRoundTrip, FailedSeriesGetsARecordAndLosesNothing) {
+  if (!have("Orthanc") || !have("storescu") || !have("dcmodify")) GTEST_SKIP() << "Orthanc or DCMTK tools not installed";
+  const fs::path dir = fresh_dir("failed");
+  // Three slices of the sample as a series of their own: too few for a head CT (exit 4).
+  fs::create_directories(dir / "short");
+  int k = 0;
+  for (const auto& e : fs::directory_iterator(kSample))
+    if (k++ < 3) fs::copy_file(e.path(), dir / "short" / e.path().filename());
+  int rc = 0;
+  const std::string modified = tool_output("dcmodify -nb -gin -m '(0020,000d)=1.2.826.0.1.3680043.8.498.1' -m '(0020,000e)=1.2.826.0.1.3680043.8.498.2' " +
+                                               (dir / "short").string() + "/*", &rc);
+  ASSERT_EQ(rc, 0) << modified;
+  Orthanc orthanc = start_orthanc(dir);
+  const ms::pipeline::OrthancClient pacs(orthanc.url(), "mandisym:test-secret");
+  ASSERT_TRUE(wait_until_up(pacs)) << ms::read_file_or_empty((dir / "orthanc.log").string());
+  const pid_t node = start_node(orthanc);
+  const std::string sent = tool_output("TCP_NODELAY=1 storescu -xs -aec ORTHANC 127.0.0.1 " + std::to_string(orthanc.dicom) + " +sd " +
+                                           (dir / "short").string(), &rc);
+  EXPECT_EQ(rc, 0) << sent;
+  std::string record, series;
+  bool found = false;
+  for (int t = 0; t < 600 && !found; ++t) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    const ms::Json all = pacs.get_json("/series");
+    if (all.empty()) continue;
+    series = all.at(0).get<std::string>();
+    record = pacs.get_text("/series/" + series + "/metadata/MandiSym", &found);
+  }
+  EXPECT_TRUE(stop(node));
+  EXPECT_EQ(record.rfind("failed instances=3 exit=4 ", 0), 0u) << record;
+  EXPECT_NE(record.find("too few"), std::string::npos) << record;
+  // Nothing stored back, nothing lost.
+  EXPECT_EQ(pacs.get_json("/series").size(), 1u);
+  EXPECT_EQ(pacs.get_json("/series/" + series + "/instances").size(), 3u);
+  EXPECT_NE(ms::read_file_or_empty((dir / "work" / "orthanc.log").string()).find("failed instances=3"), std::string::npos);
+  EXPECT_TRUE(stop(orthanc.pid));
   fs::remove_all(dir);
 }
