@@ -217,11 +217,33 @@ bool complete(const fs::path& dir) {
   }
 }
 
+// The options a finished run was given, from the command line its log.txt
+// records (line 2: `mandisym run INPUT -o DIR [options]`), without the input,
+// the output folder and -q. A de-identified run logs only
+// `mandisym run <input> --deidentify ...`.
+std::string options_in_log(const fs::path& dir) {
+  std::istringstream log(read_file_or_empty((dir / "log.txt").string()));
+  std::string line;
+  std::getline(log, line);
+  std::getline(log, line);
+  std::istringstream words(line);
+  std::vector<std::string> w;
+  for (std::string x; words >> x;) w.push_back(x);
+  if (w.size() < 3 || w[0] != "mandisym" || w[1] != "run") return "";
+  std::string options;
+  for (std::size_t k = 3; k < w.size(); ++k) {
+    if (w[k] == "-o" || w[k] == "--output") ++k;
+    else if (w[k] != "-q" && w[k] != "--quiet") options += (options.empty() ? "" : " ") + w[k];
+  }
+  return options;
+}
+
 // A complete study's status as its results.json says: `qc_failed` (exit 8,
 // every output written; docs/qc.md) when its quality control failed, else
-// `done-earlier`.
+// `done-earlier`; its options as its log records them.
 void record_complete(Study& s, const fs::path& dir) {
   s.status = "done-earlier", s.exit_code = 0;
+  s.run_options = options_in_log(dir);
   try {
     const Json v = parse_json(read_file_or_empty((dir / "results.json").string()));
     const Json* qc = find_member(v, "qc");

@@ -955,6 +955,7 @@ TEST(EndToEnd, BatchKeepsAQcFailedStudyWhenResumed) {
     std::string header, row;
     std::getline(f, header), std::getline(f, row);
     EXPECT_EQ(row.rfind("\"hq\",\"qc_failed\",8,", 0), 0u) << again << ": " << row;
+    EXPECT_NE(row.find("--hu-offset -1024 --no-figures"), std::string::npos) << again << ": the options its run was given: " << row;
   }
   EXPECT_EQ(fs::last_write_time(out / "hq" / "results.json"), stamp) << "a QC-failed study was run again";
   for (const auto& d : {src, out}) fs::remove_all(d);
