@@ -64,6 +64,9 @@ const cli::CommandSpec& batch_spec() {
                                     "default 600 s + 1 s per MB of the study's files; 0 = none", ""},
        {"aggregate-only", "", "run nothing: write the cohort files from the studies already in OUT (e.g. after a "
                               "Snakemake or cluster run); incomplete studies are listed as failed with their log's error", ""},
+       {"check-only", "", "run nothing, write nothing: check SOURCE and every study's run options (those after `--` "
+                          "and the CSV's columns) as batch does before it starts; exit 0 or 2 (the Snakemake workflow "
+                          "calls it before submitting jobs)", ""},
        {"quiet", "", "no progress output", ""},
        {"help", "", "show this help", ""}},
       "options for every study's `mandisym run`, e.g. -- --hu-offset -1000 --orientation LPS; checked before any "
@@ -519,6 +522,7 @@ int batch_command(const cli::Args& args) {
   const fs::path out = out_s;
   std::vector<Study> studies = list_studies(args.positional.at(0));
   check_run_options_of(studies, args.passthrough);
+  if (args.has("check-only")) return 0;
   std::error_code ec;
   fs::create_directories(out / ".logs", ec);
   if (ec) throw Error(ExitCode::OutputFailed, out.string() + ": cannot create the output folder: " + ec.message());

@@ -67,6 +67,14 @@ for k in ("scores", "parameters", "landmarks", "symmetry_plane"):
 EOF
 [ "$(planned)" = "empty " ] || fail "after batch a dry run plans '$(planned)', expected only 'empty'"
 
+# A bad per-study value stops the workflow before any job is planned or submitted.
+sed 's/^ramus,gen\/ramus\/dicom,10,,/ramus,gen\/ramus\/dicom,ten,,/' "$WORK/studies.csv" > "$WORK/bad.csv"
+rc=0
+bad=$(snakemake -s "$SRC/workflow/Snakefile" --profile "$SRC/workflow/profiles/local" --cores 2 -d "$WORK" \
+  --config source="$WORK/bad.csv" out="$WORK/out-bad" mandisym="$BIN" 2>&1) || rc=$?
+[ "$rc" -ne 0 ] && grep -q "run options refused.*hu-offset" <<<"$bad" || { echo "$bad"; fail "a bad hu_offset was not refused"; }
+[ ! -e "$WORK/out-bad/sym" ] || fail "a study ran although the options were refused"
+
 lint=$(sm --lint 2>&1) || true
 grep -q "Lints for" <<<"$lint" && { echo "$lint"; fail "snakemake --lint"; }
-echo "ok: snakemake workflow: 3 studies complete with their options, 1 failed, listed and planned again; batch and Snakemake skip each other's; no lints"
+echo "ok: snakemake workflow: 3 studies complete with their options, 1 failed, listed and planned again; batch and Snakemake skip each other's; bad options refused before any job; no lints"

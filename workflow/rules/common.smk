@@ -221,7 +221,21 @@ def aggregate_after_failure():
         print(f"MandiSym: the cohort files could not be written: {e}")
 
 
+def check_options():
+    """Every study's run options (run_args and the CSV's columns), checked by
+    `mandisym batch --check-only` as batch checks them, before any job is
+    submitted: a bad value stops the workflow here, not in every job."""
+    argv = [MANDISYM, "batch", SOURCE, "-o", OUT, "--check-only", "-q", "--"] + RUN_ARGS
+    try:
+        done = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+    except OSError as e:
+        raise WorkflowError(f"cannot run {MANDISYM}: {e}")
+    if done.returncode != 0:
+        raise WorkflowError(f"run options refused: {(done.stderr or done.stdout).strip()}")
+
+
 refuse_owned_options(RUN_ARGS)
 STUDIES = list_studies(SOURCE)
+check_options()
 # Not a study's: safe ids never start with a dot.
 COHORT_LOG = os.path.join(OUT, ".logs", ".cohort.log")
