@@ -180,6 +180,14 @@ TEST(OrthancRoundTrip, StoredCtComesBackWithSegSrAndReportInItsStudy) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::cout << "storescu to SEG, SR and report stored back: " << seconds << " s\n";
   RecordProperty("round_trip_seconds", std::to_string(seconds));
+  // The outputs become stable series in turn (StableAge 2 s); the node must leave them alone.
+  const auto skipped_all = [&] {
+    const std::string log = ms::read_file_or_empty((dir / "work" / "orthanc.log").string());
+    for (const char* m : {"SEG", "SR", "DOC"})
+      if (log.find(std::string("skipped (modality ") + m + ")") == std::string::npos) return false;
+    return true;
+  };
+  for (int k = 0; k < 300 && !skipped_all(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   const bool node_stopped = stop(node);
   ASSERT_TRUE(outputs.count("SEG") && outputs.count("SR") && outputs.count("DOC")) << ms::read_file_or_empty((dir / "node.log").string());
 
@@ -224,6 +232,11 @@ TEST(OrthancRoundTrip, StoredCtComesBackWithSegSrAndReportInItsStudy) {
   for (const ms::Json& id : pacs.get_json("/series"))
     if (pacs.get_json("/series/" + id.get<std::string>())["MainDicomTags"].value("Modality", "") == "CT") ct = id.get<std::string>();
   EXPECT_EQ(pacs.get_text("/series/" + ct + "/metadata/MandiSym", &found).rfind("ok instances=", 0), 0u);
+  // Its own outputs were seen and left alone.
+  const std::string node_log = ms::read_file_or_empty((dir / "work" / "orthanc.log").string());
+  for (const char* m : {"SEG", "SR", "DOC"})
+    EXPECT_NE(node_log.find(std::string("skipped (modality ") + m + ")"), std::string::npos) << node_log;
+  EXPECT_EQ(node_log.find("failed instances"), std::string::npos) << node_log;
 
   EXPECT_TRUE(node_stopped) << "mandisym orthanc did not stop on SIGTERM";
   EXPECT_TRUE(stop(orthanc.pid)) << "Orthanc did not stop on SIGTERM";
