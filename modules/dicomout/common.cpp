@@ -1,5 +1,6 @@
 #include "dicomout/common.h"
 
+#include <cstdlib>
 #include <ctime>
 #include <filesystem>
 
@@ -56,7 +57,7 @@ void check(const OFCondition& cond, const std::string& context) {
 
 void quiet_dcmtk() {
   static const bool once = [] {
-    OFLog::configure(OFLogger::FATAL_LOG_LEVEL);  // conditions are reported through check()
+    if (!std::getenv("MANDISYM_DCMTK_LOG")) OFLog::configure(OFLogger::FATAL_LOG_LEVEL);  // conditions are reported through check()
     return true;
   }();
   (void)once;
@@ -88,6 +89,13 @@ StudyContext read_study_context(const DicomSource& source, bool deidentify, cons
     if (present || deidentify || a.tag == DCM_StudyInstanceUID) ctx.attributes.emplace_back(key_of(a.tag), v.c_str());
   }
   return ctx;
+}
+
+DicomSource ensure_frame_of_reference(DicomSource source, std::string* note) {
+  if (!source.frame_of_reference_uid.empty()) return source;
+  source.frame_of_reference_uid = new_uid();
+  if (note) *note = "the CT has no FrameOfReferenceUID: the SEG and the SR share a new one (" + source.frame_of_reference_uid + ")";
+  return source;
 }
 
 void apply_study_context(DcmItem& item, const StudyContext& study) {

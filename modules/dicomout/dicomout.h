@@ -35,6 +35,11 @@ struct StudyContext {
 // Throws ms::Error(InputInvalid) if the file cannot be read.
 StudyContext read_study_context(const DicomSource& source, bool deidentify, const std::string& tool_version);
 
+// The source with a Frame of Reference all outputs can share: the CT's, or
+// for a CT without FrameOfReferenceUID (0020,0052) a new UID, which *note
+// then reports (the SEG needs one; the SR's points use the same).
+DicomSource ensure_frame_of_reference(DicomSource source, std::string* note);
+
 // One object written.
 struct Written {
   std::string path;                 // file written

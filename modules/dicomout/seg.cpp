@@ -121,6 +121,7 @@ Written write_seg(const Mask& mask, const DicomSource& source, const StudyContex
         "createBinarySegmentation");
   std::unique_ptr<DcmSegmentation> seg(raw);
   check(seg->importFromSourceImage(source.first_file.c_str()), "import patient, study and frame of reference from " + source.first_file);
+  check(seg->getFrameOfReference().setFrameOfReferenceUID(source.frame_of_reference_uid.c_str()), "FrameOfReferenceUID");
   check(seg->getSeries().setSeriesNumber("9701"), "SeriesNumber");
   const Uint16 segment = add_mandible_segment(*seg, mask_from_user, study.tool_version);
   add_shared_groups(*seg, source);

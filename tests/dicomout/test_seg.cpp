@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include <dcmtk/config/osconfig.h>
@@ -14,6 +15,7 @@
 
 #include "dicomout/dicomout.h"
 #include "io/volume_io.h"
+#include "tests/support/dicom_forge.h"
 #include "tests/support/dicom_readback.h"
 
 namespace fs = std::filesystem;
@@ -169,4 +171,56 @@ TEST(Seg, SagittalSeriesGivesTheMaskExactly) {
   EXPECT_EQ(c.set_pixels, mask.count());
   // The same mandible as the axial run: the mask volumes agree.
   EXPECT_NEAR(static_cast<double>(mask.count()), static_cast<double>(sample_mask().count()), 0.01 * sample_mask().count());
+}
+
+// An Enhanced (multi-frame) CT stored top to bottom: every SEG frame points at
+// the one CT instance and its own frame number, and holds the mask exactly.
+TEST(Seg, EnhancedMultiFrameCtIsReferencedFrameByFrame) {
+  const fs::path dir = scratch("enhanced");
+  ms::testing::EnhancedSpec e;
+  for (int k = 0; k < 12; ++k) {
+    e.ipps.push_back({-5, 3, 40.0 - 1.5 * k});
+    e.frames.emplace_back(e.base.rows * e.base.cols, ms::testing::stored_for(e.base, 0));
+  }
+  ms::testing::write_enhanced((dir / "enhanced.dcm").string(), e);
+  const ms::io::LoadedScan scan = ms::io::read_scan(dir.string());
+  ASSERT_TRUE(scan.dicom.has_value());
+  ASSERT_EQ(scan.dicom->frames.size(), 12u);
+  ms::Mask mask{scan.volume.geom, std::vector<std::uint8_t>(scan.volume.geom.voxel_count(), 0)};
+  const ms::Geometry& g = mask.geom;
+  for (std::size_t k = 2; k < 9; ++k)  // a block, off-centre, on 7 of the 12 frames
+    for (std::size_t j = 3; j < 11; ++j)
+      for (std::size_t i = 5; i < 20; ++i) mask.data[g.linear(i, j, k)] = 1;
+  std::string note;  // the forged CT has no Frame of Reference
+  const ms::DicomSource source = ms::dicomout::ensure_frame_of_reference(*scan.dicom, &note);
+  EXPECT_NE(note.find("no FrameOfReferenceUID"), std::string::npos);
+  const auto study = ms::dicomout::read_study_context(source, false, "test");
+  const auto w = ms::dicomout::write_seg(mask, source, study, false, (dir / "seg.dcm").string());
+  const ms::test::SegComparison c = ms::test::compare_seg_with_mask(w.path, mask);
+  EXPECT_EQ(c.frames, 7u);
+  EXPECT_EQ(c.mismatches, 0u);
+  EXPECT_EQ(c.set_pixels, mask.count());
+  DcmFileFormat ff;
+  ASSERT_TRUE(ff.loadFile(w.path.c_str()).good());
+  DcmDataset& ds = *ff.getDataset();
+  std::set<Uint16> frames;
+  for (int f = 0; f < 7; ++f) {
+    DcmItem& deriv = ms::test::nested(ds, DCM_PerFrameFunctionalGroupsSequence, f, DCM_DerivationImageSequence);
+    DcmItem* src = nullptr;
+    ASSERT_TRUE(deriv.findAndGetSequenceItem(DCM_SourceImageSequence, src, 0).good());
+    OFString uid;
+    src->findAndGetOFString(DCM_ReferencedSOPInstanceUID, uid);
+    EXPECT_EQ(uid.c_str(), scan.dicom->frames.front().sop_instance_uid);
+    Uint16 number = 0;
+    EXPECT_TRUE(src->findAndGetUint16(DCM_ReferencedFrameNumber, number).good() ||
+                [&] {
+                  OFString s;
+                  return src->findAndGetOFString(DCM_ReferencedFrameNumber, s).good() && (number = static_cast<Uint16>(std::stoi(s.c_str()))) > 0;
+                }());
+    frames.insert(number);
+  }
+  // The frame numbers of the mask's slices, from where each slice lies (frames stored at z = 40 - 1.5 m).
+  std::set<Uint16> expected;
+  for (std::size_t k = 2; k < 9; ++k) expected.insert(static_cast<Uint16>(std::lround((40.0 - g.index_to_lps(0, 0, k)[2]) / 1.5) + 1));
+  EXPECT_EQ(frames, expected);
 }
