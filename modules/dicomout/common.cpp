@@ -15,27 +15,30 @@ namespace {
 
 // What a de-identified output keeps of each copied attribute (PS3.15 Table
 // E.1-1, Basic Profile with the Retain UIDs Option): 'U' kept (a UID), 'Z'
-// present and empty, 'X' removed.
+// present and empty, 'X' removed. required: Type 1 or 2 in the Patient or
+// General Study module (PS3.3 C.7.1.1, C.7.2.1), so written, empty when the
+// CT lacks it.
 struct Copied {
   DcmTagKey tag;
   char deidentified;
+  bool required;
 };
 const Copied kCopied[] = {
     // Patient module
-    {DCM_PatientName, 'Z'},
-    {DCM_PatientID, 'Z'},
-    {DCM_IssuerOfPatientID, 'X'},
-    {DCM_PatientBirthDate, 'Z'},
-    {DCM_PatientSex, 'Z'},
-    {DCM_PatientAge, 'X'},
+    {DCM_PatientName, 'Z', true},
+    {DCM_PatientID, 'Z', true},
+    {DCM_IssuerOfPatientID, 'X', false},
+    {DCM_PatientBirthDate, 'Z', true},
+    {DCM_PatientSex, 'Z', true},
+    {DCM_PatientAge, 'X', false},
     // General study module
-    {DCM_StudyInstanceUID, 'U'},
-    {DCM_StudyDate, 'Z'},
-    {DCM_StudyTime, 'Z'},
-    {DCM_ReferringPhysicianName, 'Z'},
-    {DCM_StudyID, 'Z'},
-    {DCM_AccessionNumber, 'Z'},
-    {DCM_StudyDescription, 'X'},
+    {DCM_StudyInstanceUID, 'U', true},
+    {DCM_StudyDate, 'Z', true},
+    {DCM_StudyTime, 'Z', true},
+    {DCM_ReferringPhysicianName, 'Z', true},
+    {DCM_StudyID, 'Z', true},
+    {DCM_AccessionNumber, 'Z', true},
+    {DCM_StudyDescription, 'X', false},
 };
 
 std::uint32_t key_of(const DcmTagKey& t) { return (static_cast<std::uint32_t>(t.getGroup()) << 16) | t.getElement(); }
@@ -86,7 +89,7 @@ StudyContext read_study_context(const DicomSource& source, bool deidentify, cons
     const bool present = ds.findAndGetOFStringArray(a.tag, v).good();
     if (deidentify && a.deidentified == 'X') continue;
     if (deidentify && a.deidentified == 'Z') v.clear();
-    if (present || deidentify || a.tag == DCM_StudyInstanceUID) ctx.attributes.emplace_back(key_of(a.tag), v.c_str());
+    if (present || a.required) ctx.attributes.emplace_back(key_of(a.tag), v.c_str());
   }
   return ctx;
 }
