@@ -28,6 +28,17 @@ namespace fs = std::filesystem;
 
 namespace ms::pipeline {
 
+namespace {
+// Seconds between polls of /changes: a series is stored back within this of
+// becoming stable (Orthanc's StableAge, 60 s by default, dominates).
+constexpr double kDefaultPollS = 2;
+// Seconds a series' run may take: 60x the slowest documented run (512 x 512 x
+// 450 at 0.5 mm, ~15 s; docs/benchmarks.md), as batch's floor of 600 s plus
+// downloads of large series over a LAN.
+constexpr double kDefaultStudyTimeoutS = 900;
+std::string seconds(double s) { return std::to_string(static_cast<int>(s)); }
+}  // namespace
+
 const cli::CommandSpec& orthanc_spec() {
   static const cli::CommandSpec s{
       "orthanc",
@@ -43,8 +54,8 @@ const cli::CommandSpec& orthanc_spec() {
        {"credentials", "FILE", "file holding user:password for HTTP basic authentication (not on the command line)", "none"},
        {"work", "WORKDIR", "folder for the state, the log, downloads and each series' outputs (results/<series>/)", ""},
        {"once", "", "process the changes recorded so far, wait for series not yet stable, then exit", ""},
-       {"poll", "S", "seconds between polls of /changes", "2", 0.1, 3600},
-       {"study-timeout", "S", "seconds a series' run may take before it is killed", "900", 10, 86400},
+       {"poll", "S", "seconds between polls of /changes", seconds(kDefaultPollS), 0.1, 3600},
+       {"study-timeout", "S", "seconds a series' run may take before it is killed", seconds(kDefaultStudyTimeoutS), 10, 86400},
        {"help", "", "show this help", ""}},
       "options passed to every `mandisym run` (e.g. --deidentify, --no-cranial)"};
   return s;
@@ -59,7 +70,7 @@ struct Service {
   const OrthancClient& pacs;
   fs::path work;
   std::vector<std::string> run_options;
-  double timeout_s = 900;
+  double timeout_s = kDefaultStudyTimeoutS;
 };
 
 std::string now_text() {
@@ -256,14 +267,14 @@ int orthanc_command(const cli::Args& args) {
       throw Error(ExitCode::Usage, "--credentials " + args.get("credentials") + ": expected one line user:password");
   }
   const OrthancClient pacs(args.get("url"), credentials);
-  Service s{pacs, fs::path(args.get("work")), args.passthrough, args.ranged("study-timeout", 900, "s")};
+  Service s{pacs, fs::path(args.get("work")), args.passthrough, args.ranged("study-timeout", kDefaultStudyTimeoutS, "s")};
   std::error_code ec;
   fs::create_directories(s.work, ec);
   if (ec) throw Error(ExitCode::OutputFailed, s.work.string() + ": cannot create: " + ec.message());
   (void)pacs.get_json("/system");  // reachable, and the credentials work
   ::signal(SIGINT, on_stop);
   ::signal(SIGTERM, on_stop);
-  const int failed = follow_changes(s, args.has("once"), args.ranged("poll", 2, "s"));
+  const int failed = follow_changes(s, args.has("once"), args.ranged("poll", kDefaultPollS, "s"));
   log_line(s, "stopped; " + std::to_string(failed) + " series failed");
   return failed ? static_cast<int>(ExitCode::BatchIncomplete) : 0;
 }

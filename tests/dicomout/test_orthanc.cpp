@@ -13,6 +13,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -281,5 +282,29 @@ TEST(OrthancRoundTrip, FailedSeriesGetsARecordAndLosesNothing) {
   EXPECT_EQ(pacs.get_json("/series/" + series + "/instances").size(), 3u);
   EXPECT_NE(ms::read_file_or_empty((dir / "work" / "orthanc.log").string()).find("failed instances=3"), std::string::npos);
   EXPECT_TRUE(stop(orthanc.pid));
+  fs::remove_all(dir);
+}
+
+// Bad invocations: one line on stderr and a documented exit code, before anything is written.
+TEST(OrthancNode, BadInvocationsAreRefusedWithTheirExitCode) {
+  const fs::path dir = fresh_dir("bad");
+  std::ofstream(dir / "nocolon") << "justauser\n";
+  const std::string bin = MANDISYM_BINARY, work = " --work " + (dir / "w").string();
+  const std::vector<std::pair<std::string, int>> cases = {
+      {" orthanc" + work, 2},                                                                  // no --url
+      {" orthanc --url ftp://127.0.0.1:1" + work, 2},                                          // not http(s)
+      {" orthanc --url http://127.0.0.1:1", 2},                                                // no --work
+      {" orthanc --url http://127.0.0.1:1 --credentials " + (dir / "nocolon").string() + work, 2},
+      {" orthanc --url http://127.0.0.1:1" + work + " -- --bogus-option", 2},                 // run options checked first
+      {" orthanc --url http://127.0.0.1:1" + work + " --once", 3},                             // nobody listening
+  };
+  for (const auto& [args, code] : cases) {
+    int rc = 0;
+    const std::string err = tool_output(bin + args, &rc);
+    EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == code) << args << " -> " << rc << ": " << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << args << ": " << err;
+    EXPECT_NE(err.find("mandisym: error: "), std::string::npos) << args << ": " << err;
+  }
+  EXPECT_FALSE(fs::exists(dir / "w" / "state.json"));
   fs::remove_all(dir);
 }
