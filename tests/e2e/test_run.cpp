@@ -122,7 +122,7 @@ TEST(EndToEnd, WritesEveryOutputOfTheContract) {
   const fs::path out = temp_dir("files");
   ASSERT_EQ(run("run " + (kSamples / "symmetric" / "dicom").string() + " -o " + out.string() + " -q"), 0);
   for (const char* f : {"report.html", "results.json", "mandible_mask.nii.gz", "mandible.vtp", "mandible.stl",
-                        "landmarks.mrk.json", "symmetry_plane.mrk.json", "log.txt", "results.csv", "srd.json"})
+                        "landmarks.mrk.json", "symmetry_plane.mrk.json", "log.txt", "results.csv", "srd.json", "report.pdf"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
   EXPECT_TRUE(fs::is_directory(out / "qc"));
   // No staging leftovers.
