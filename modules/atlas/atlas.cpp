@@ -28,8 +28,6 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
-// A pose must keep at least this fraction of the atlas box inside the scan.
-constexpr double kMinCoverage = 0.5;
 
 struct Rot {
   double m[9];

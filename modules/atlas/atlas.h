@@ -80,6 +80,9 @@ struct Fit {
 
 // Below this NCC the atlas is taken as not found in the scan (docs/atlas.md).
 constexpr double kMinFitNcc = 0.35;
+// A pose must keep at least this fraction of the atlas box inside the scan to
+// be scored; when none does, Fit::ncc stays below -1.
+constexpr double kMinCoverage = 0.5;
 
 // A scan's left-right mirror as a flip of its array axis nearest to the
 // L-R (LPS x) axis, about the scan's centre: voxel i of that axis trades

@@ -1989,9 +1989,15 @@ static Result segment_auto(const Volume& ct, const Options& opt) {
   whole.atlas = &fit;
   Result out = fit.found ? segment_by_atlas_and_image(ct, opt, fit, whole) : segment_auto_with(ct, opt, whole);
   out.atlas = fit;
-  if (opt.use_atlas && !fit.found)
-    out.warnings.push_back("the mandible atlas did not fit this scan (NCC " + std::to_string(fit.ncc).substr(0, 5) +
-                           "): the mandible was identified by size and position alone (docs/atlas.md)");
+  if (opt.use_atlas && !fit.found) {
+    char why[160];
+    if (fit.ncc < -1)  // no pose left enough of the atlas inside the scan to be scored
+      std::snprintf(why, sizeof why, "the mandible atlas could not be placed: no pose leaves %.0f %% of it inside the scanned field",
+                    100 * atlas::kMinCoverage);
+    else
+      std::snprintf(why, sizeof why, "the mandible atlas did not fit this scan (NCC %.2f, below %.2f)", fit.ncc, atlas::kMinFitNcc);
+    out.warnings.push_back(std::string(why) + ": the mandible was identified by size and position alone (docs/atlas.md)");
+  }
   return out;
 }
 
