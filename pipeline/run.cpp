@@ -525,12 +525,15 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   // Outputs, staged, then moved into place (results.json last).
   write_geometry(staging, surf.mesh, S, maps);
   const Figures fig = write_figures(figures_on, scan.volume, surf.mesh, mask_outputs.get(), staging, S);
-  S.timings_s.emplace_back("report", progress.lap());
-  S.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (deidentify)  // warnings may name files under the input folder
     for (auto& w : S.warnings)
       for (std::size_t p = w.find(input); !input.empty() && p != std::string::npos; p = w.find(input, p))
         w.replace(p, input.size(), "<input>");
+  // report.pdf and the DICOM objects hold no timing, so they are written here and timed with the report.
+  const DicomExport dx{args.has("dicom") ? &*scan.dicom : nullptr, deidentify, args.has("mask"), S.tool_version};
+  const std::vector<std::string> export_lines = write_pdf_and_dicom(staging.dir().string(), reports::results_json(S), seg.mask, fig.views, dx);
+  S.timings_s.emplace_back("report", progress.lap());
+  S.total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   char total[64];
   std::snprintf(total, sizeof total, "total %.2f s", S.total_s);
   std::string log = progress.text();
@@ -538,9 +541,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
   for (const auto& m : liblog::take_library_messages()) log += "library: " + m + "\n";
   progress.say(total);
   log += std::string(total) + "\n";
-  DicomExport dx{args.has("dicom") ? &*scan.dicom : nullptr, deidentify, args.has("mask"), S.tool_version};
-  for (const auto& line : write_pdf_and_dicom(staging.dir().string(), reports::results_json(S), seg.mask, fig.views, dx))
-    log += line + "\n";
+  for (const auto& line : export_lines) log += line + "\n";
   write_summaries(staging, S, fig, "mandisym " + S.tool_version + "\n" + logged_command + "\n" + log);
   staging.commit();
   if (!quiet) {

@@ -779,6 +779,14 @@ TEST(EndToEnd, DicomStringsAreEscapedAndDeidentifyRemovesThem) {
     for (const std::string& secret : {uid, std::string("20260101"), std::string("alert(1)"), ph.string()})
       EXPECT_EQ(s.find(secret), std::string::npos) << e.path() << " contains " << secret;
   }
+  // report.pdf's text is compressed: read it with poppler where installed.
+  if (std::system("command -v pdftotext > /dev/null 2>&1") == 0) {
+    ASSERT_EQ(std::system(("pdftotext " + (anon / "report.pdf").string() + " " + (anon / "pdf.txt").string()).c_str()), 0);
+    const std::string text = slurp_file(anon / "pdf.txt");
+    EXPECT_NE(text.find("asymmetry"), std::string::npos) << "pdftotext read nothing";
+    for (const std::string& secret : {uid, std::string("2026-01-01"), std::string("20260101"), std::string("alert(1)"), ph.string()})
+      EXPECT_EQ(text.find(secret), std::string::npos) << "report.pdf contains " << secret;
+  }
   fs::remove_all(ph);
   fs::remove_all(out);
   fs::remove_all(anon);
