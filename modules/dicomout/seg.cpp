@@ -1,4 +1,5 @@
 // The mandible mask as a binary DICOM Segmentation on the source CT's frames.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -28,17 +29,58 @@ std::string ds(double v) {
   return b;
 }
 
+// The mask's set voxels' index bounding box, [lo, hi] per axis; empty() when none.
+struct IndexBox {
+  long lo[3] = {0, 0, 0}, hi[3] = {-1, -1, -1};
+  bool empty() const { return hi[0] < lo[0]; }
+};
+
+IndexBox bounding_box(const Mask& mask) {
+  IndexBox b;
+  const Geometry& g = mask.geom;
+  bool first = true;
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j)
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        if (!mask.data[g.linear(i, j, k)]) continue;
+        const long v[3] = {static_cast<long>(i), static_cast<long>(j), static_cast<long>(k)};
+        for (int a = 0; a < 3; ++a) {
+          b.lo[a] = first ? v[a] : std::min(b.lo[a], v[a]);
+          b.hi[a] = first ? v[a] : std::max(b.hi[a], v[a]);
+        }
+        first = false;
+      }
+  return b;
+}
+
+// The columns c of a row where a + c * s rounds into [lo, hi] (one column of
+// margin each side; the caller still checks every pixel), clipped to [0, n).
+void column_range(double a, double s, long lo, long hi, long n, long* c0, long* c1) {
+  if (std::abs(s) < 1e-12) {
+    const long v = std::lround(a);
+    if (v < lo || v > hi) *c0 = 0, *c1 = -1;
+    return;
+  }
+  double x0 = (lo - 0.5 - a) / s, x1 = (hi + 0.5 - a) / s;
+  if (x0 > x1) std::swap(x0, x1);
+  *c0 = std::max(*c0, static_cast<long>(std::floor(x0)) - 1);
+  *c1 = std::min(*c1, std::min(n - 1, static_cast<long>(std::ceil(x1)) + 1));
+}
+
 // The mask sampled on one source frame's pixel grid (row-major, 0/1 bytes),
-// nearest neighbour in LPS; returns whether any pixel is set.
-bool sample_frame(const Mask& mask, const DicomSourceFrame& f, std::vector<Uint8>& pixels) {
+// nearest neighbour in LPS; returns whether any pixel is set. Only the
+// columns of each row that can reach the mask's bounding box are visited.
+bool sample_frame(const Mask& mask, const IndexBox& box, const DicomSourceFrame& f, std::vector<Uint8>& pixels) {
   pixels.assign(static_cast<std::size_t>(f.rows) * f.cols, 0);
   const Geometry& g = mask.geom;
   const Vec3 o = g.lps_to_index(f.ipp);
   const Vec3 step_c = g.lps_to_index(f.ipp + f.spacing_i * f.row_dir) - o;  // one column along the row
   const Vec3 step_r = g.lps_to_index(f.ipp + f.spacing_j * f.col_dir) - o;  // one row down
   bool any = false;
-  for (unsigned r = 0; r < f.rows; ++r)
-    for (unsigned c = 0; c < f.cols; ++c) {
+  for (unsigned r = 0; r < f.rows && !box.empty(); ++r) {
+    long c0 = 0, c1 = static_cast<long>(f.cols) - 1;
+    for (int a = 0; a < 3; ++a) column_range(o[a] + r * step_r[a], step_c[a], box.lo[a], box.hi[a], f.cols, &c0, &c1);
+    for (long c = std::max(0L, c0); c <= c1; ++c) {
       long idx[3];
       bool inside = true;
       for (int a = 0; a < 3 && inside; ++a) {
@@ -49,6 +91,7 @@ bool sample_frame(const Mask& mask, const DicomSourceFrame& f, std::vector<Uint8
       pixels[static_cast<std::size_t>(r) * f.cols + c] = 1;
       any = true;
     }
+  }
   return any;
 }
 
@@ -127,8 +170,9 @@ Written write_seg(const Mask& mask, const DicomSource& source, const StudyContex
   add_shared_groups(*seg, source);
   std::vector<Uint8> pixels;
   std::size_t frames = 0;
+  const IndexBox box = bounding_box(mask);
   for (std::size_t k = 0; k < source.frames.size(); ++k)
-    if (sample_frame(mask, source.frames[k], pixels)) {
+    if (sample_frame(mask, box, source.frames[k], pixels)) {
       add_seg_frame(*seg, segment, source, k, pixels);
       ++frames;
     }
