@@ -173,8 +173,15 @@ Written save(DcmFileFormat& file, const std::string& path, const std::string& wh
   if (ds.findAndGetOFString(DCM_SOPClassUID, v).good()) w.sop_class_uid = v.c_str();
   if (ds.findAndGetOFString(DCM_SOPInstanceUID, v).good()) w.sop_instance_uid = v.c_str();
   if (ds.findAndGetOFString(DCM_SeriesInstanceUID, v).good()) w.series_instance_uid = v.c_str();
-  const OFCondition c = file.saveFile(path.c_str(), EXS_LittleEndianExplicit);
-  if (c.bad()) throw Error(ExitCode::OutputFailed, path + ": cannot write the DICOM " + what + ": " + c.text());
+  // Written under a temporary name, then renamed: a reader never sees half an object.
+  const std::string partial = path + ".partial";
+  const OFCondition c = file.saveFile(partial.c_str(), EXS_LittleEndianExplicit);
+  std::error_code ec;
+  if (c.good()) std::filesystem::rename(partial, path, ec);
+  if (c.bad() || ec) {
+    std::filesystem::remove(partial, ec);
+    throw Error(ExitCode::OutputFailed, path + ": cannot write the DICOM " + what + ": " + (c.bad() ? c.text() : "rename failed"));
+  }
   return w;
 }
 

@@ -32,8 +32,9 @@ std::string apply_output_series(DcmItem& item, const StudyContext& study, const 
 // ReferencedSeriesSequence (0008,1115) (Common Instance Reference module).
 void reference_source_series(DcmItem& item, const DicomSource& source);
 
-// Writes the dataset as a Part 10 file (explicit VR little endian) and
-// returns what was written; throws ms::Error(OutputFailed) naming the path.
+// Writes the dataset as a Part 10 file (explicit VR little endian; under
+// path.partial, then renamed) and returns what was written; throws
+// ms::Error(OutputFailed) naming the path.
 Written save(DcmFileFormat& file, const std::string& path, const std::string& what);
 
 // Throws ms::Error(Internal) with context when cond is bad.
