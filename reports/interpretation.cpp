@@ -1,4 +1,6 @@
 #include "reports/interpretation.h"
+
+#include "core/bands.h"
 #include "reports/writers.h"
 
 #include <cmath>
@@ -36,16 +38,7 @@ Interpretation unbanded_difference(const std::string& key, const std::string& ti
 
 }  // namespace
 
-const char* band_label(Band b) {
-  switch (b) {
-    case Band::Typical: return "within typical range";
-    case Band::Mild: return "mild asymmetry";
-    case Band::Marked: return "marked asymmetry";
-    case Band::Unbanded: return "no published band";
-    case Band::Unavailable: return "not available";
-  }
-  return "";
-}
+const char* band_label(Band b) { return band_label_of(band_name(b)).data(); }
 
 const char* band_name(Band b) {
   switch (b) {

@@ -5,10 +5,11 @@
 // landmarks. Page 2: key views and the note on the bands. A page that runs
 // out of room continues on a new page rather than clipping.
 //
-// The band labels repeat reports/interpretation.cpp's band_label(): dicomout
-// reads results.json only and does not link the reports library.
+// Band labels come from core/bands.h, the table report.html uses too.
 #include <cairo-pdf.h>
 #include <cairo.h>
+
+#include "core/bands.h"
 
 #include <algorithm>
 #include <cmath>
@@ -291,14 +292,8 @@ void draw_warnings(Canvas& c, const Json& results) {
   c.y += 4;
 }
 
-// interpretation.<key>.band as report.html words it (reports/interpretation.cpp, band_label).
-std::string band_label(const std::string& band) {
-  if (band == "typical") return "within typical range";
-  if (band == "mild") return "mild asymmetry";
-  if (band == "marked") return "marked asymmetry";
-  if (band == "unbanded") return "no published band";
-  return "not available";
-}
+// interpretation.<key>.band as report.html words it (core/bands.h).
+std::string band_label(const std::string& band) { return std::string(band_label_of(band)); }
 
 Rgb band_colour(const std::string& band) {
   return band == "typical" ? kGreen : band == "mild" ? kAmber : band == "marked" ? kRed : kGrey;
