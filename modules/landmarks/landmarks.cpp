@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <queue>
@@ -176,6 +177,25 @@ Vec3 refine_extreme(const std::vector<Vec3>& V, int top, const Vec3& ex, const V
 // adults; the bounds leave room for children and for pose.
 constexpr double kProcessSeparationMm = 10.0;
 constexpr double kProcessHeightMm = 30.0;
+// The condyle caps the posterior border of the ramus: condylion lies within
+// half a condylar head (8-10 mm antero-posteriorly) of the posterior ramus
+// tangent, plus the border's concavity below the neck, while the coronoid tip
+// lies about the minimum ramus breadth in front of it (29-33 mm in adults,
+// ~25 mm in children; Humphrey et al. 1999, Kharoshah et al. 2010). A
+// process deeper than this in front of the tangent is the coronoid.
+constexpr double kCondyleMaxDepthMm = 15.0;
+// ... and a coronoid tip stands over the front half of the ramus's section
+// 10 mm below it (the sigmoid notch lies behind it), while a condyle stands
+// over its neck or the back of the ramus, however far a ramus leaning back
+// puts its lower border behind it.
+constexpr double kCoronoidFrontFraction = 0.5;
+// Condylion lies above the coronoid tip in most adults (median 10 mm above on
+// the complete clinical contours of openkbp-train folds 1-4, 90 sides; the
+// coronoid higher by at most 6.6 mm at the 95th percentile); a coronoid
+// standing more than this above the posterior process is coronoid
+// hyperplasia (Izumi et al. 2006, rare) or, far more often, a condylar
+// process cut short: its stump is not condylion.
+constexpr double kCoronoidAboveCondyleMaxMm = 15.0;
 
 // The posterior and inferior borders as two chords (the cephalometric
 // tangents), where no single hull edge is long enough (a rounded angle, a
@@ -375,6 +395,36 @@ GonialSide gonial_tangents(const Frame& f, double s) {
   return gs;
 }
 
+// How far (mm) vertex v lies in front of the posterior border of side s's
+// ramus: the most posterior extent of the side's surface from kBorderBandMm[0]
+// to kBorderBandMm[1] below v (below the processes and the sigmoid notch,
+// above the angle; where a ramus leans back, its lower part). The hull edges
+// of gonial_tangents do not serve: with the condylar process missing, the
+// longest posterior-facing edge runs from the coronoid tip down to the border
+// and the coronoid lies on it. NaN when the side has no surface there.
+constexpr double kBorderBandMm[2] = {10.0, 40.0};
+double depth_from_posterior_border(const Frame& f, double s, std::size_t v) {
+  const auto &U = f.U, &A = f.A, &H = f.H;
+  double back = -kInf;
+  for (std::size_t i = 0; i < U.size(); ++i) {
+    const double below = H[v] - H[i];
+    if (s * U[i] > kSideFraction * f.umax && below >= kBorderBandMm[0] && below <= kBorderBandMm[1]) back = std::max(back, A[i]);
+  }
+  return back > -kInf ? back - A[v] : std::numeric_limits<double>::quiet_NaN();
+}
+
+// Where vertex v stands over the side's cross-section kSectionBelowMm below
+// it: 0 over its front, 1 over its back (antero-posteriorly, sections
+// 3 mm thick); NaN without a section.
+constexpr double kSectionBelowMm = 10.0;
+double position_over_section(const Frame& f, double s, std::size_t v) {
+  const auto &U = f.U, &A = f.A, &H = f.H;
+  double lo = kInf, hi = -kInf;
+  for (std::size_t i = 0; i < U.size(); ++i)
+    if (s * U[i] > kSideFraction * f.umax && std::abs(H[v] - kSectionBelowMm - H[i]) <= 1.5) lo = std::min(lo, A[i]), hi = std::max(hi, A[i]);
+  return hi - lo > 1e-9 ? (A[v] - lo) / (hi - lo) : std::numeric_limits<double>::quiet_NaN();
+}
+
 // Gonion, second pass: the extreme point of each side along the bisector
 // of the two tangents' outward normals. The bisector direction is averaged
 // over both sides (in the plane frame they are mirror images), so a ramus
@@ -530,6 +580,14 @@ namespace {
 
 // Why a landmark is missing (docs/landmarks.md, "Missing landmarks").
 const char* const kNoExtremity = "the surface has no geodesic extremity on this side above the body (the ramus is cut or not segmented)";
+const char* const kCondyleNotSegmented =
+    "the condyle is not on the segmented surface: the ramus's process lies more than 15 mm in front of its posterior "
+    "border, over its front, where the coronoid is (a condylar head joined to the skull base at this voxel size is left "
+    "out of the mask with it, or the scan ends below it)";
+const char* const kCondyleStump =
+    "the condyle is not on the segmented surface: the ramus's posterior process ends more than 15 mm below the coronoid tip, "
+    "a condylar process cut short (its head joined to the skull base at this voxel size and left out of the mask), not "
+    "condylion";
 const char* const kNoSecondProcess =
     "one process only: no geodesic extremity of this ramus lies at least 10 mm in front of or behind its highest one within 30 mm of "
     "its height, so the coronoid process is not separate from the condyle on the surface (thin or lost at this voxel size, joined "
@@ -563,6 +621,63 @@ void explain_missing(const GonialSide (&gonial)[2], const bool (&cut_side)[2], R
   }
 }
 
+// The condylar and coronoid processes of side s (+1 left, -1 right) among
+// the geodesic extremities (detect() step 3): their apex vertices (`apex`:
+// the highest point near an extremity), -1 when not found, with the reason.
+struct Processes {
+  int co = -1, cr = -1;
+  const char* why_co = nullptr;
+  const char* why_cr = nullptr;
+};
+Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>& ext, const std::function<int(int)>& apex) {
+  const auto &U = f.U, &A = f.A, &H = f.H;
+  Processes out;
+  auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
+  std::vector<int> top;
+  for (int e : ext)
+    if (on_side(static_cast<std::size_t>(e))) top.push_back(e);
+  std::sort(top.begin(), top.end(), [&](int a, int b) { return H[static_cast<std::size_t>(a)] > H[static_cast<std::size_t>(b)]; });
+  if (top.empty()) {
+    out.why_co = out.why_cr = kNoExtremity;
+    return out;
+  }
+  // Two processes: distinct antero-posteriorly (> kProcessSeparationMm), at
+  // a similar height (< kProcessHeightMm apart). The highest extremity and
+  // the highest other one that forms such a pair with it; the posterior of
+  // the two is the condyle. (Only the second highest was tried before: where
+  // the coronoid is thin at 4 mm voxels a molar cusp ranked second and the
+  // pair failed.)
+  int co = top[0], cr = -1;
+  for (std::size_t k = 1; k < top.size(); ++k) {
+    const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[k]);
+    if (std::abs(A[p] - A[q]) > kProcessSeparationMm && std::abs(H[p] - H[q]) < kProcessHeightMm) {
+      co = A[p] > A[q] ? top[0] : top[k];
+      cr = A[p] > A[q] ? top[k] : top[0];
+      break;
+    }
+  }
+  co = apex(co);
+  if (cr >= 0) cr = apex(cr);
+  const std::size_t c = static_cast<std::size_t>(co);
+  // The condyle caps the posterior border: a process more than
+  // kCondyleMaxDepthMm in front of it, over the front half of the ramus
+  // (kCoronoidFrontFraction), is the coronoid. Nor is a stump far below the
+  // coronoid condylion (kCoronoidAboveCondyleMaxMm).
+  if (depth_from_posterior_border(f, s, c) > kCondyleMaxDepthMm && position_over_section(f, s, c) < kCoronoidFrontFraction) {
+    out.why_co = kCondyleNotSegmented;
+    out.cr = co;
+    return out;
+  }
+  if (cr >= 0 && H[static_cast<std::size_t>(cr)] - H[c] > kCoronoidAboveCondyleMaxMm) {
+    out.why_co = kCondyleStump;
+    out.cr = cr;
+    return out;
+  }
+  out.co = co, out.cr = cr;
+  if (cr < 0) out.why_cr = kNoSecondProcess;
+  return out;
+}
+
 }  // namespace
 
 Result detect(const Mesh& mesh, const Options& opt) {
@@ -580,7 +695,7 @@ Result detect(const Mesh& mesh, const Options& opt) {
   r.plane = opt.plane ? *opt.plane : mandible_plane(mesh);
   const Frame f = frame_of(V, r.plane, opt.superior);
   const Vec3 &e_ml = f.e_ml, &e_ap = f.e_ap, &e_si = f.e_si;
-  const auto &U = f.U, &A = f.A, &H = f.H;
+  const auto& H = f.H;
 
   // 2. Geodesic extremities (METHOD.md §2).
   DebugLap lap("MANDISYM_DEBUG_LANDMARKS", "landmarks");
@@ -600,39 +715,13 @@ Result detect(const Mesh& mesh, const Options& opt) {
   GonialSide gonial[2];  // [0] left, [1] right
   for (double s : {1.0, -1.0}) {
     const std::string suf = s > 0 ? "_L" : "_R";
-    auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
-    std::vector<int> top;
-    for (int e : ext)
-      if (on_side(static_cast<std::size_t>(e))) top.push_back(e);
-    std::sort(top.begin(), top.end(), [&](int a, int b) { return H[static_cast<std::size_t>(a)] > H[static_cast<std::size_t>(b)]; });
-    int co = -1, cr = -1;
-    if (!top.empty()) {
-      // Two processes: distinct antero-posteriorly (> kProcessSeparationMm),
-      // at a similar height (< kProcessHeightMm apart). The highest extremity
-      // and the highest other one that forms such a pair with it; the
-      // posterior of the two is the condyle. (Only the second highest was
-      // tried before: where the coronoid is thin at 4 mm voxels a molar
-      // cusp ranked second and the pair failed.)
-      co = top[0];
-      for (std::size_t k = 1; k < top.size(); ++k) {
-        const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[k]);
-        if (std::abs(A[p] - A[q]) > kProcessSeparationMm && std::abs(H[p] - H[q]) < kProcessHeightMm) {
-          co = A[p] > A[q] ? top[0] : top[k];
-          cr = A[p] > A[q] ? top[k] : top[0];
-          break;
-        }
-      }
-    }
-    if (co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, highest_near(co), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
-    if (cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, highest_near(cr), e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
-    if (top.empty()) {
-      r.why_missing["Co" + suf] = r.why_missing["Cr" + suf] = kNoExtremity;
-    } else if (cr < 0) {
-      r.why_missing["Cr" + suf] = kNoSecondProcess;
-    }
-
+    const Processes pr = condyle_and_coronoid(f, s, ext, highest_near);
     // Gonion, first pass (gonial_tangents).
     gonial[s > 0 ? 0 : 1] = gonial_tangents(f, s);
+    if (pr.co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, pr.co, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
+    if (pr.cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, pr.cr, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
+    if (pr.why_co) r.why_missing["Co" + suf] = pr.why_co;
+    if (pr.why_cr) r.why_missing["Cr" + suf] = pr.why_cr;
   }
 
   // Gonion, second pass (place_gonia).

@@ -124,7 +124,7 @@ RepairReport repair_and_remesh(Mesh& mesh, const RepairOptions& opt) {
 
   rep.holes_filled = fill_holes(sm);
   rep.self_intersections_before = count_self_intersections(sm);
-  if (lap.on()) std::fprintf(stderr, "  surface   %zu self-intersecting pairs in %zu faces before repair\n", rep.self_intersections_before, sm.number_of_faces());
+  if (lap.on()) std::fprintf(stderr, "  surface   %zu self-intersecting pairs in %zu faces before repair\n", rep.self_intersections_before, static_cast<std::size_t>(sm.number_of_faces()));
   // Degenerate input (docs/surface.md, "Repair"): the surface of a voxel
   // mask does not intersect itself (0 pairs on every real scan here); a few
   // pairs come from decimation. Thousands per hundred faces are noise or a

@@ -545,6 +545,40 @@ TEST(EndToEnd, VisibleHumanFemaleLandmarksMatchTheReference) {
   fs::remove_all(out);
 }
 
+// A real scan whose condylar heads, fused to the skull base at 4.7 x 4.7 x
+// 3 mm, are left out of the mask with the atlas zone's cut (openkbp-train
+// pt_20, a tuning-fold patient): the ramus's one process on each side is the
+// coronoid. It is reported as Cr, and Co as missing with the reason; before
+// the condyle had to cap the posterior border, the coronoid was reported as
+// Co, 29 mm from the condylion of the clinical contour (docs/landmarks.md,
+// step 3). The same detector on the clinical contour (--mask) finds both
+// processes, with Cr where the automatic run has it.
+TEST(EndToEnd, RealScanWithoutItsCondylesReportsNoCondylion) {
+  const fs::path dir = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / "pt_20";
+  if (!fs::exists(dir / "ct.nii.gz")) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("pt20_out"), contour = temp_dir("pt20_contour");
+  std::string err;
+  const std::string common = "run " + (dir / "ct.nii.gz").string() + " --hu-offset -1000 -q --no-figures --no-cranial -o ";
+  ASSERT_EQ(run(common + out.string(), &err), 0) << err;
+  ASSERT_EQ(run(common + contour.string() + " --mask " + (dir / "mask.nii.gz").string(), &err), 0) << err;
+  const Value r = load(out / "results.json"), c = load(contour / "results.json");
+  for (const char* side : {"_L", "_R"}) {
+    const std::string co = std::string("Co") + side, cr = std::string("Cr") + side;
+    EXPECT_TRUE(r.at("landmarks").at(co).is_null()) << co;
+    const std::string why = r.at("landmark_detection").at("why_missing").value(co, "");
+    EXPECT_NE(why.find("condyle is not on the segmented surface"), std::string::npos) << co << ": " << why;
+    ASSERT_FALSE(r.at("landmarks").at(cr).is_null()) << cr;
+    ASSERT_FALSE(c.at("landmarks").at(co).is_null()) << "contour " << co;
+    ASSERT_FALSE(c.at("landmarks").at(cr).is_null()) << "contour " << cr;
+    double d2 = 0;
+    for (std::size_t a = 0; a < 3; ++a) d2 += std::pow(r.at("landmarks").at(cr)[a].get<double>() - c.at("landmarks").at(cr)[a].get<double>(), 2);
+    std::printf("%s %.1f mm from the contour's\n", cr.c_str(), std::sqrt(d2));
+    EXPECT_LE(std::sqrt(d2), 5.0) << cr;
+  }
+  fs::remove_all(out);
+  fs::remove_all(contour);
+}
+
 // With its own segmentation of a scan that resolves the cortex, the surface
 // is placed between voxels where the CT crosses the segmentation's surface
 // level (docs/surface.md, "Sub-voxel placement"): the mesh keeps the mask's
