@@ -1147,9 +1147,8 @@ bool is_padding(const Series& s, double v) {
 // Values of one frame (src: its stored values): HU = stored x RescaleSlope +
 // RescaleIntercept, per slice; padding becomes air, values below air are set
 // to air. Counts both.
-std::vector<float> frame_hu(const Series& s, const Frame& fr, const double* src, std::size_t plane, std::size_t& padded,
-                            std::size_t& clamped) {
-  std::vector<float> out(plane);
+void frame_hu(const Series& s, const Frame& fr, const double* src, std::size_t plane, float* out, std::size_t& padded,
+              std::size_t& clamped) {
   for (std::size_t p = 0; p < plane; ++p) {
     const double v = src[p];
     const bool pad = is_padding(s, v);
@@ -1161,19 +1160,25 @@ std::vector<float> frame_hu(const Series& s, const Frame& fr, const double* src,
     }
     out[p] = static_cast<float>(h);
   }
-  return out;
 }
 
-// The frames the layout uses (its order and its duplicates) in HU, by frame
-// index (other frames empty), decoded file by file in parallel; the padding
-// voxels counted. Throws the first decoding error, naming its file.
+// The frames the layout uses (its order and its duplicates) in HU, decoded
+// file by file in parallel; the padding voxels counted. A frame of the
+// layout's order goes straight into slice k of `slices` when given (no
+// resampling: the volume is written once, not copied from per-frame
+// buffers); the others (duplicates, or every frame without `slices`) into
+// their own buffers. Throws the first decoding error, naming its file.
 struct DecodedFrames {
-  std::vector<std::vector<float>> hu;
+  std::vector<std::vector<float>> hu;  // by frame index; empty for frames in `slices` or unused
+  std::vector<const float*> at;        // by frame index: its pixels, wherever they are
   std::size_t padded = 0;
 };
 
-DecodedFrames decode_frames(const Series& s, const Layout& L, unsigned rows, unsigned cols) {
+DecodedFrames decode_frames(const Series& s, const Layout& L, unsigned rows, unsigned cols, float* slices) {
   const std::size_t plane = static_cast<std::size_t>(rows) * cols;
+  std::vector<long> slice_of(s.frames.size(), -1);
+  if (slices)
+    for (std::size_t k = 0; k < L.order.size(); ++k) slice_of[L.order[k]] = static_cast<long>(k);
   std::map<std::string, std::vector<std::size_t>> by_file;  // the frames needed, grouped by file
   std::vector<std::size_t> needed = L.order;
   for (const auto& g : L.duplicates) needed.insert(needed.end(), g.begin(), g.end());
@@ -1203,24 +1208,34 @@ DecodedFrames decode_frames(const Series& s, const Layout& L, unsigned rows, uns
     }
     for (auto i : by_file.at(file)) {
       const Frame& fr = s.frames[i];
-      out.hu[i] = frame_hu(s, fr, stored.data() + static_cast<std::size_t>(fr.frame) * plane, plane, padded, clamped);
+      float* dst = nullptr;
+      if (slice_of[i] >= 0) {
+        dst = slices + static_cast<std::size_t>(slice_of[i]) * plane;
+      } else {
+        out.hu[i].resize(plane);
+        dst = out.hu[i].data();
+      }
+      frame_hu(s, fr, stored.data() + static_cast<std::size_t>(fr.frame) * plane, plane, dst, padded, clamped);
     }
   }
   silence.reset();
   if (!error.empty()) throw Error(ExitCode::InputInvalid, error);
   (void)clamped;  // values below -1024 HU outside the reconstruction circle are routine
   out.padded = padded;
+  out.at.resize(s.frames.size(), nullptr);
+  for (std::size_t i = 0; i < s.frames.size(); ++i)
+    out.at[i] = slice_of[i] >= 0 ? slices + static_cast<std::size_t>(slice_of[i]) * plane : out.hu[i].empty() ? nullptr : out.hu[i].data();
   return out;
 }
 
 // Duplicates: slices at a position already used must be identical to the
 // slice kept there (dropped); different images there are refused, naming both.
 // Returns the number dropped.
-std::size_t exact_duplicates(const Series& s, const Layout& L, const std::vector<std::vector<float>>& hu) {
+std::size_t exact_duplicates(const Series& s, const Layout& L, const DecodedFrames& d, std::size_t plane) {
   std::size_t dropped = 0;
   for (std::size_t k = 0; k < L.order.size(); ++k)
     for (auto dup : L.duplicates[k]) {
-      if (hu[dup] != hu[L.order[k]])
+      if (!std::equal(d.at[dup], d.at[dup] + plane, d.at[L.order[k]]))
         throw Error(ExitCode::InputInvalid, "two different images at the same position: " + s.frames[L.order[k]].file + " and " +
                                                 s.frames[dup].file + " (interleaved acquisitions?)");
       ++dropped;
@@ -1229,7 +1244,7 @@ std::size_t exact_duplicates(const Series& s, const Layout& L, const std::vector
 }
 
 // Bilinear sample of one frame's HU (img) at LPS point p; air outside it.
-double sample_frame(const Frame& fr, const std::vector<float>& img, const Vec3& r, const Vec3& c, unsigned rows, unsigned cols,
+double sample_frame(const Frame& fr, const float* img, const Vec3& r, const Vec3& c, unsigned rows, unsigned cols,
                     const Vec3& p) {
   const Vec3 q = p - fr.ipp;
   const double x = dot(q, r) / fr.spacing_i, y = dot(q, c) / fr.spacing_j;
@@ -1244,7 +1259,7 @@ double sample_frame(const Frame& fr, const std::vector<float>& img, const Vec3& 
 // normal) of v's spacing and direction that covers every frame's in-plane
 // footprint; linear between the bracketing frames, bilinear within each.
 // The grid is refused when a run on it would exceed the memory budget.
-void resample_frames(Volume& v, const Series& s, const Layout& L, const std::vector<std::vector<float>>& hu,
+void resample_frames(Volume& v, const Series& s, const Layout& L, const std::vector<const float*>& hu,
                      std::uint64_t memory_budget) {
   Geometry& g = v.geom;
   const Frame& f0 = s.frames[L.order.front()];
@@ -1296,28 +1311,26 @@ Volume assemble(const Series& s, const Layout& L, std::vector<std::string>& warn
   AbortGuard::reading(s.frames.empty() ? std::string("series") : s.frames.front().file + " (or another file of its series)");
   const Frame& f0 = s.frames[L.order.front()];
   const unsigned rows = f0.rows, cols = f0.cols;
-  const DecodedFrames decoded = decode_frames(s, L, rows, cols);
-  const std::size_t dropped = exact_duplicates(s, L, decoded.hu);
+  const std::size_t plane = static_cast<std::size_t>(rows) * cols;
+  Volume v;
+  if (!L.resample) v.hu.resize(plane * L.order.size());
+  const DecodedFrames decoded = decode_frames(s, L, rows, cols, L.resample ? nullptr : v.hu.data());
+  const std::size_t dropped = exact_duplicates(s, L, decoded, plane);
   if (dropped) warnings.push_back(std::to_string(dropped) + " exact duplicate slice(s) ignored");
   if (decoded.padded) warnings.push_back(std::to_string(decoded.padded) + " padding voxels (PixelPaddingValue) set to air");
   if (lower(s.photometric) == "monochrome1")
     warnings.push_back("MONOCHROME1 CT: the inverted display convention does not change HU and is ignored");
 
-  Volume v;
   Geometry& g = v.geom;
   const Vec3 r = f0.row_dir, c = f0.col_dir, n = L.normal;
   g.spacing = {f0.spacing_i, f0.spacing_j, L.nominal_spacing};
   g.direction = {r[0], c[0], n[0], r[1], c[1], n[1], r[2], c[2], n[2]};
   if (L.resample) {
-    resample_frames(v, s, L, decoded.hu, memory_budget);
+    resample_frames(v, s, L, decoded.at, memory_budget);
     return v;
   }
-  const std::size_t plane = static_cast<std::size_t>(rows) * cols;
   g.size = {cols, rows, L.order.size()};
   g.origin = f0.ipp;
-  v.hu.resize(g.voxel_count());
-  for (std::size_t k = 0; k < L.order.size(); ++k)
-    std::copy(decoded.hu[L.order[k]].begin(), decoded.hu[L.order[k]].end(), v.hu.begin() + k * plane);
   return v;
 }
 
