@@ -178,11 +178,11 @@ Vec3 refine_extreme(const std::vector<Vec3>& V, int top, const Vec3& ex, const V
 constexpr double kProcessSeparationMm = 10.0;
 constexpr double kProcessHeightMm = 30.0;
 // The condyle caps the posterior border of the ramus: condylion lies within
-// half a condylar head (8-10 mm antero-posteriorly) of the posterior ramus
-// tangent, plus the border's concavity below the neck, while the coronoid tip
-// lies about the minimum ramus breadth in front of it (29-33 mm in adults,
-// ~25 mm in children; Humphrey et al. 1999, Kharoshah et al. 2010). A
-// process deeper than this in front of the tangent is the coronoid.
+// half a condylar head (8-10 mm antero-posteriorly) of the border
+// (depth_from_posterior_border), plus the border's concavity below the neck,
+// while the coronoid tip lies about the minimum ramus breadth in front of it
+// (29-33 mm in adults, ~25 mm in children; Humphrey et al. 1999, Kharoshah
+// et al. 2010). A process deeper than this is not the condyle...
 constexpr double kCondyleMaxDepthMm = 15.0;
 // ... and a coronoid tip stands over the front half of the ramus's section
 // 10 mm below it (the sigmoid notch lies behind it), while a condyle stands
