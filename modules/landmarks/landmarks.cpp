@@ -458,15 +458,44 @@ void place_gonia(const Frame& f, const GonialSide (&gonial)[2], double apex_radi
   }
 }
 
+// The symphysis's midline (step 5): menton and pogonion are midline points,
+// and the symphysis's lower border and labial profile are flat across it
+// (within 0.5-1 mm over +-15 mm on the Visible Human female), so their
+// lowest and most anterior points are ill-conditioned laterally: the same
+// head stored with a 10 degree yaw moved "the lowest point" 8.6 mm across
+// the chin. The midline is where the arch's outer walls are: the lateral
+// middle of the surface in slabs kArchSlabMm thick at kArchDepthsMm behind
+// the chin's front, at the chin's level (up to kChinLevelMm above the
+// symphysis's lowest point, below the tooth roots). It follows a deviated
+// chin (the walls move with it) and mirrors with the scan. Returns U; 0 (the
+// symmetry plane) when no slab has surface on both sides of it.
+constexpr double kArchDepthsMm[3] = {6.0, 9.0, 12.0};
+constexpr double kArchSlabMm = 3.0;
+constexpr double kChinLevelMm = 15.0;  // about half the symphysis's height (~30 mm)
+double symphysis_midline(const Frame& f, double afront, double hlow) {
+  const auto &U = f.U, &A = f.A, &H = f.H;
+  double sum = 0;
+  int used = 0;
+  for (double d : kArchDepthsMm) {
+    double lo = kInf, hi = -kInf;
+    for (std::size_t v = 0; v < U.size(); ++v)
+      if (std::abs(A[v] - afront - d) <= 0.5 * kArchSlabMm && H[v] <= hlow + kChinLevelMm) lo = std::min(lo, U[v]), hi = std::max(hi, U[v]);
+    if (lo < 0 && hi > 0) sum += 0.5 * (lo + hi), ++used;
+  }
+  return used > 0 ? sum / used : 0.0;
+}
+
 // 4. Midline: menton = lowest point of the symphysis, pogonion = most
-//    anterior point of the chin. The symphysis is the front of the
-//    midline band (within 20 mm of its most anterior point), so that a
-//    pitched head does not move menton back along the flat lower border.
+//    anterior point of the chin, both on the symphysis's midline. The
+//    symphysis is the front of the midline band (within 20 mm of its most
+//    anterior point), so that a pitched head does not move menton back along
+//    the flat lower border.
+constexpr double kMidlineStripMm = 3.0;  // half-width of the strip about the symphysis's midline
 void place_midline(const Frame& f, double apex_radius_mm, LandmarkSet& out) {
   const auto& V = f.V;
   const auto &U = f.U, &A = f.A, &H = f.H;
   const double umax = f.umax;
-  const Vec3 &e_ml = f.e_ml, &e_ap = f.e_ap, &e_si = f.e_si;
+  const Vec3 &e_ap = f.e_ap, &e_si = f.e_si;
   std::vector<int> band;
   double afront = kInf;
   for (std::size_t v = 0; v < V.size(); ++v)
@@ -474,8 +503,15 @@ void place_midline(const Frame& f, double apex_radius_mm, LandmarkSet& out) {
       band.push_back(static_cast<int>(v));
       afront = std::min(afront, A[v]);
     }
-  std::vector<int> sym;
+  double hlow = kInf;
   for (int v : band)
+    if (A[static_cast<std::size_t>(v)] < afront + 20.0) hlow = std::min(hlow, H[static_cast<std::size_t>(v)]);
+  const double umid = band.empty() ? 0.0 : symphysis_midline(f, afront, hlow);
+  // The strip about the midline, its front 20 mm the symphysis.
+  std::vector<int> strip, sym;
+  for (std::size_t v = 0; v < V.size(); ++v)
+    if (std::abs(U[v] - umid) < kMidlineStripMm && A[v] < 0) strip.push_back(static_cast<int>(v));
+  for (int v : strip)
     if (A[static_cast<std::size_t>(v)] < afront + 20.0) sym.push_back(v);
   const int me = plateau(V, sym, [&](std::size_t v) { return -H[v]; }, kPlateauTolMm);
   if (me >= 0) {
@@ -483,26 +519,26 @@ void place_midline(const Frame& f, double apex_radius_mm, LandmarkSet& out) {
     // there is ill-conditioned, and any one vertex of the flat bottom is
     // where the triangulation happened to put it (the same scan mirrored
     // moved it 0.9 mm). Menton is the centre of the bottom — the mean of the
-    // vertices within kPlateauTolMm of the lowest — at the lowest vertex's height.
-    Vec3 c{0, 0, 0};
-    double hmin = kInf;
+    // vertices within kPlateauTolMm of the lowest — at the lowest vertex's
+    // height, on the midline.
+    double amean = 0, hmin = kInf;
     int cnt = 0;
     for (int v : sym) hmin = std::min(hmin, H[static_cast<std::size_t>(v)]);
     for (int v : sym)
-      if (H[static_cast<std::size_t>(v)] <= hmin + kPlateauTolMm) c = c + V[static_cast<std::size_t>(v)], ++cnt;
-    c = (1.0 / cnt) * c;
-    out.set("Me", c + (hmin - dot(c - f.origin, e_si)) * e_si);
+      if (H[static_cast<std::size_t>(v)] <= hmin + kPlateauTolMm) amean += A[static_cast<std::size_t>(v)], ++cnt;
+    amean /= cnt;
+    out.set("Me", f.origin + umid * f.e_ml + amean * e_ap + hmin * e_si);
     const double hme = H[static_cast<std::size_t>(me)];
     // The chin lies below the alveolar process and the incisors: within
     // 18 mm of menton, and below B point (the deepest point of the labial
     // concavity) when the profile has one: in a head extended in the
     // scanner the alveolar process otherwise comes further forward.
-    const double top = std::min(hme + 18.0, b_point_height(band, A, H, hme));
+    const double top = std::min(hme + 18.0, b_point_height(strip, A, H, hme));
     std::vector<int> chin;
-    for (int v : band)
+    for (int v : strip)
       if (H[static_cast<std::size_t>(v)] < top) chin.push_back(v);
     const int pog = plateau(V, chin, [&](std::size_t v) { return -A[v]; }, kPlateauTolMm);
-    if (pog >= 0) out.set("Pog", refine_extreme(V, pog, e_ml, e_si, e_ap, -1.0, apex_radius_mm));
+    if (pog >= 0) out.set("Pog", refine_extreme(V, pog, f.e_ml, e_si, e_ap, -1.0, apex_radius_mm));
   }
 }
 
