@@ -1951,16 +1951,13 @@ constexpr double kZoneCheckSpacingMm = 1.0;
 
 static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, const atlas::Fit& fit, const GridContext& whole) {
   const Geometry& g = ct.geom;
-  if (std::max({g.spacing[0], g.spacing[1], g.spacing[2]}) > opt.max_working_spacing_mm + 1e-6) return segment_by_atlas(ct, opt, fit);
-  // The image separates what its voxels resolve: the joint spaces and
-  // occlusal gaps need two samples (kJointResolvingSpacingMm) along at least
-  // two axes (a thin in-plane grid under 2 mm slices still does). The Visible
-  // Human head reconstructed at 1.5 / 1.75 / 2 mm took the image's mask and
-  // lost Cr by 9-19 mm, at 2 mm both rami (60-88 mm); the zone: Co <= 5.8, Cr
-  // <= 2.6 mm from the reference (docs/segmentation.md).
-  std::array<double, 3> sp{g.spacing[0], g.spacing[1], g.spacing[2]};
-  std::sort(sp.begin(), sp.end());
-  if (sp[1] > kJointResolvingSpacingMm + 1e-6) return segment_by_atlas(ct, opt, fit);
+  // The image separates what its voxels resolve (resolves_cortex: 1.25 mm
+  // along two axes, slices up to max_working_spacing_mm; a thin in-plane
+  // grid under 2 mm slices still does). The Visible Human head reconstructed
+  // at 1.5 / 1.75 / 2 mm took the image's mask and lost Cr by 9-19 mm, at
+  // 2 mm both rami (60-88 mm); the zone: Co <= 5.8, Cr <= 2.6 mm from the
+  // reference (docs/segmentation.md).
+  if (!resolves_cortex(g, opt)) return segment_by_atlas(ct, opt, fit);
   Result image;
   try {
     image = segment_auto_with(ct, opt, whole);
