@@ -1,5 +1,6 @@
 #include "reports/qc.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -41,6 +42,61 @@ constexpr double kMinAgreement = 0.4;
 // nothing says which. Random phantom anatomy outside the atlas's range
 // (docs/phantom.md, member 8): image ~0.98 against the truth, zone 0.72.
 constexpr double kMinSeparationsDice = 0.85;
+// Bigonial width (Go_L - Go_R), mm: about 85-105 mm between the bony gonia
+// of adults (the soft-tissue go-go of Farkas's anthropometry, ~90-105 mm,
+// adds the masseters' few millimetres), about 70-75 mm at six years; hard
+// bounds well outside.
+constexpr double kBigonialMm[2] = {55.0, 140.0};
+// Ramus height (Co - Go, each side), mm: 50-70 mm in adults, ~40 mm in young
+// children; a severely hypoplastic ramus (hemifacial microsomia) can be half
+// of its side's, so the lower bound is low.
+constexpr double kRamusHeightMm[2] = {20.0, 100.0};
+// Body length (Go - Me, each side), mm: 75-95 mm in adults, ~60 mm in young
+// children.
+constexpr double kBodyLengthMm[2] = {40.0, 130.0};
+// Gonial angle Co-Go-Me (each side, in 3-D), degrees: the cephalometric
+// gonial angle (between the border tangents) is 120-130 in adults (Jarabak's
+// norm 130 +- 7), rarely under 105 (low-angle faces) and up to ~140 in
+// children and edentulous elders; the 3-D angle between the points runs
+// 5-10 degrees below it (headsq's reference: 122.5 / 124.6 against 131.6 /
+// 128.0). Below 85 or beyond 160 no mandible's.
+constexpr double kGonialAngleDeg[2] = {85.0, 160.0};
+// Each bilateral landmark on its own side of the symmetry plane, mm: half the
+// narrowest width above (bigonial ~70 mm in children) less a 15 mm shift of a
+// side towards the midline in marked asymmetry.
+constexpr double kMinSideOffsetMm = 20.0;
+// The mandible's symmetry plane against the atlas's mid-sagittal plane (the
+// pose that identified the mandible), degrees: a chin deviated by 15 mm turns
+// the plane by ~10 degrees over the ~90 mm from the condyles; the atlas's
+// pose is fitted to a few degrees.
+constexpr double kMaxPlaneToAtlasDeg = 15.0;
+// The mandible's plane against the cranium's (an independent mirror plane):
+// the same bound; a warning, since the cranial fit has its own failures.
+constexpr double kMaxPlaneToCraniumDeg = 15.0;
+
+// Landmarks lie on the surface they were found on: Me on it, Co, Cr, Go and
+// Pog at the apex of a quadratic fitted over 4 mm around a surface point,
+// which on a faceted surface of a 4-5 mm scan lies up to about a millimetre
+// off it (openkbp-train: at most 1.08 mm); twice that.
+constexpr double kMaxLandmarkOffSurfaceMm = 2.0;
+
+constexpr double kPi = 3.14159265358979323846;
+
+double angle_deg(const Vec3& a, const Vec3& b) {
+  return std::acos(std::clamp(dot(a, b) / (norm(a) * norm(b)), -1.0, 1.0)) * 180.0 / kPi;
+}
+
+// The angle between two planes' normals, ignoring their signs, degrees.
+double plane_angle_deg(const Vec3& n1, const Vec3& n2) { return std::min(angle_deg(n1, n2), angle_deg(n1, -1.0 * n2)); }
+
+// Of per-side values (NaN: side not measured), the one farther from the
+// middle of range: the side that decides the check.
+double deciding_side(double l, double r, const double range[2]) {
+  if (std::isnan(l)) return r;
+  if (std::isnan(r)) return l;
+  const double mid = 0.5 * (range[0] + range[1]);
+  return std::abs(l - mid) >= std::abs(r - mid) ? l : r;
+}
 
 }  // namespace
 
@@ -51,70 +107,136 @@ std::vector<const QcCheck*> Qc::failed() const {
   return f;
 }
 
-Qc evaluate_qc(const RunSummary& s) {
-  Qc q;
-  auto add = [&](const std::string& name, double value, const double range[2], const std::string& unit, const std::string& source,
-                 bool fatal, const std::string& message) {
+namespace {
+
+const double kInf = std::numeric_limits<double>::infinity();
+
+// Appends checks to a Qc; a NaN value is "not measured" and passes.
+struct CheckList {
+  Qc& q;
+  void add(const std::string& name, double value, const double range[2], const std::string& unit, const std::string& source,
+           bool fatal, const std::string& message) {
     QcCheck c;
     c.name = name, c.value = value, c.lo = range[0], c.hi = range[1], c.unit = unit, c.source = source, c.fatal = fatal;
     c.passed = std::isnan(value) || (value >= range[0] && value <= range[1]);
     c.message = message;
     q.checks.push_back(c);
+  }
+};
+
+// 1. Orientation and identification by the atlas (automatic segmentation
+//    only). The margin is measured when both an upright and a mirrored
+//    placement fit inside the scan; the agreement when the atlas was used.
+void atlas_checks(const RunSummary& s, CheckList& out) {
+  if (s.segmentation_method != "auto" || s.atlas.ncc < -1) return;
+  const double fit_range[2] = {kMinAtlasNcc, 1.0};
+  out.add("atlas_fit_ncc", s.atlas.ncc, fit_range, "", "openkbp-train folds 1-4 (90 scans) fit at 0.70-0.88 (docs/atlas.md)", false,
+          "the head does not look like the atlas's heads (or too little of it is in the scan): the mandible was identified "
+          "with less certainty");
+  const bool both = s.atlas.ncc > -1 && s.atlas.mirrored_ncc >= atlas::kMinFitNcc;
+  const double margin_range[2] = {0.0, kInf};
+  out.add("orientation_margin", both ? s.atlas.ncc - s.atlas.mirrored_ncc : kNaN, margin_range, "",
+          "upright fits beat mirrored ones by at least 0.19 on openkbp-train folds 1-4 (docs/atlas.md)", true,
+          "the anatomy fits the atlas better upside down or front to back: the scan's orientation is likely wrong "
+          "(set it with --orientation)");
+  const double agree_range[2] = {kMinAgreement, 1.0};
+  out.add("atlas_agreement", s.atlas.found ? s.atlas_agreement : kNaN, agree_range, "",
+          "openkbp-train folds 1-4 agree at 0.43-0.66 (all with Dice >= 0.73 against the clinical contour)", false,
+          "the mask holds little of the atlas's mandible: a small or atrophic mandible, or parts of it missing");
+  const double sep_range[2] = {kMinSeparationsDice, 1.0};
+  out.add("separations_agree", s.image_zone_dice >= 0 ? s.image_zone_dice : kNaN, sep_range, "",
+          "inter-observer Dice of mandible contours on CT ~0.9 (Brouwer et al. 2012)", true,
+          "the image's separation and the atlas's zone disagree and the atlas did not verify the image's: the mandible's "
+          "extent is uncertain (anatomy beyond the atlas's range, or another bone joined in the image)");
+}
+
+// 2. Anatomical plausibility of the volume and of the landmarks' distances
+//    and angles (adult and child anthropometry, bounds well outside).
+void shape_checks(const RunSummary& s, CheckList& out) {
+  out.add("mandible_volume_cm3", s.seg_volume_mm3 / 1000.0, kVolumeCm3, "cm3",
+          "clinical contours of 90 OpenKBP adults: 29-112 cm3, widened for children", !s.truncated,
+          "the segmented volume is not a mandible's");
+  const LandmarkSet& L = s.landmarks.landmarks;
+  auto dist = [&](const char* a, const char* b) {
+    const Vec3 *p = L.find(a), *q = L.find(b);
+    return p && q ? distance(*p, *q) : kNaN;
   };
-  const double inf = std::numeric_limits<double>::infinity();
-  // 1. Orientation and identification by the atlas (automatic segmentation
-  //    only). The margin is measured when both an upright and a mirrored
-  //    placement fit inside the scan; the agreement when the atlas was used.
-  if (s.segmentation_method == "auto" && s.atlas.ncc >= -1) {
-    const double fit_range[2] = {kMinAtlasNcc, 1.0};
-    add("atlas_fit_ncc", s.atlas.ncc, fit_range, "", "openkbp-train folds 1-4 (90 scans) fit at 0.70-0.88 (docs/atlas.md)", false,
-        "the head does not look like the atlas's heads (or too little of it is in the scan): the mandible was identified "
-        "with less certainty");
-    const bool both = s.atlas.ncc > -1 && s.atlas.mirrored_ncc >= atlas::kMinFitNcc;
-    const double margin_range[2] = {0.0, inf};
-    add("orientation_margin", both ? s.atlas.ncc - s.atlas.mirrored_ncc : kNaN, margin_range, "",
-        "upright fits beat mirrored ones by at least 0.19 on openkbp-train folds 1-4 (docs/atlas.md)", true,
-        "the anatomy fits the atlas better upside down or front to back: the scan's orientation is likely wrong "
-        "(set it with --orientation)");
-    const double agree_range[2] = {kMinAgreement, 1.0};
-    add("atlas_agreement", s.atlas.found ? s.atlas_agreement : kNaN, agree_range, "",
-        "openkbp-train folds 1-4 agree at 0.43-0.66 (all with Dice >= 0.73 against the clinical contour)", false,
-        "the mask holds little of the atlas's mandible: a small or atrophic mandible, or parts of it missing");
-    const double sep_range[2] = {kMinSeparationsDice, 1.0};
-    add("separations_agree", s.image_zone_dice >= 0 ? s.image_zone_dice : kNaN, sep_range, "",
-        "inter-observer Dice of mandible contours on CT ~0.9 (Brouwer et al. 2012)", true,
-        "the image's separation and the atlas's zone disagree and the atlas did not verify the image's: the mandible's "
-        "extent is uncertain (anatomy beyond the atlas's range, or another bone joined in the image)");
-  }
-  // 2. Anatomical plausibility.
-  add("mandible_volume_cm3", s.seg_volume_mm3 / 1000.0, kVolumeCm3, "cm3",
-      "clinical contours of 90 OpenKBP adults: 29-112 cm3, widened for children", !s.truncated,
-      "the segmented volume is not a mandible's");
-  const Vec3* col = s.landmarks.landmarks.find("Co_L");
-  const Vec3* cor = s.landmarks.landmarks.find("Co_R");
-  const Vec3* me = s.landmarks.landmarks.find("Me");
-  double width = kNaN, drop = kNaN;
-  if (col && cor) width = distance(*col, *cor);
-  if (me && (col || cor)) {
-    const Vec3 up = s.head_superior();
+  double drop = kNaN;
+  if (const Vec3* me = L.find("Me")) {
     double h = 0, n = 0;
-    for (const Vec3* c : {col, cor})
-      if (c) h += dot(*c - *me, up), n += 1;
-    drop = h / n;
+    for (const char* c : {"Co_L", "Co_R"})
+      if (const Vec3* co = L.find(c)) h += dot(*co - *me, s.head_superior()), n += 1;
+    if (n > 0) drop = h / n;
   }
-  add("bicondylar_width_mm", width, kBicondylarMm, "mm", "adult intercondylar width ~90-125 mm, young children from ~75 mm", true,
-      "the condyles are not a mandible's width apart");
-  add("condyles_above_menton_mm", drop, kCondyleMentonMm, "mm",
-      "ramus and body height: 50-70 mm in adults; menton always below the condyles", true,
-      "menton is not below the condyles in the head frame: another bone, or the head read upside down");
-  // 3. Completeness (warnings).
+  out.add("bicondylar_width_mm", dist("Co_L", "Co_R"), kBicondylarMm, "mm",
+          "adult intercondylar width ~90-125 mm, young children from ~75 mm", true, "the condyles are not a mandible's width apart");
+  out.add("condyles_above_menton_mm", drop, kCondyleMentonMm, "mm", "ramus and body height: 50-70 mm in adults; menton always below the condyles",
+          true, "menton is not below the condyles in the head frame: another bone, or the head read upside down");
+  out.add("bigonial_width_mm", dist("Go_L", "Go_R"), kBigonialMm, "mm", "bony bigonial width ~85-105 mm in adults, ~70-75 mm in young children", true,
+          "the gonia are not a mandible's width apart");
+  out.add("ramus_height_mm", deciding_side(dist("Co_L", "Go_L"), dist("Co_R", "Go_R"), kRamusHeightMm), kRamusHeightMm, "mm",
+          "Co-Go 50-70 mm in adults, ~40 mm in young children, lower on a hypoplastic ramus", true,
+          "a ramus (condylion to gonion) is not a ramus's height: landmarks on the wrong structure");
+  out.add("body_length_mm", deciding_side(dist("Go_L", "Me"), dist("Go_R", "Me"), kBodyLengthMm), kBodyLengthMm, "mm",
+          "Go-Me 75-95 mm in adults, ~60 mm in young children", true,
+          "a body (gonion to menton) is not a mandibular body's length: landmarks on the wrong structure");
+  auto gonial = [&](const char* co, const char* go) {
+    const Vec3 *c = L.find(co), *g = L.find(go), *m = L.find("Me");
+    return c && g && m ? angle_deg(*c - *g, *m - *g) : kNaN;
+  };
+  const double surface_range[2] = {0.0, kMaxLandmarkOffSurfaceMm};
+  out.add("landmarks_off_surface_mm", L.points.empty() ? kNaN : s.landmarks_off_surface_mm, surface_range, "mm",
+          "landmarks are surface points; the quadratic apex fit moves them up to ~1 mm off a coarse scan's surface",
+          true, "a landmark lies off the mandible's surface");
+  out.add("gonial_angle_deg", deciding_side(gonial("Co_L", "Go_L"), gonial("Co_R", "Go_R"), kGonialAngleDeg), kGonialAngleDeg, "deg",
+          "cephalometric gonial angle 120-130 deg in adults (rarely under 105), to ~140 in children and edentulous elders; the "
+          "3-D angle Co-Go-Me runs 5-10 deg below it", true,
+          "the angle condylion-gonion-menton is not a mandible's: landmarks on the wrong structure");
+}
+
+// 3. Agreement of the symmetry plane with independent estimates: the sides of
+//    the bilateral landmarks, the atlas's pose and the cranium's mirror plane.
+void symmetry_checks(const RunSummary& s, CheckList& out) {
+  const Plane& plane = s.reference.plane;  // normal to the patient's left
+  double side = kNaN;
+  for (const char* n : {"Co_L", "Cr_L", "Go_L", "Co_R", "Cr_R", "Go_R"})
+    if (const Vec3* p = s.landmarks.landmarks.find(n)) {
+      const double d = plane.signed_distance(*p) * (n[3] == 'L' ? 1.0 : -1.0);
+      side = std::isnan(side) ? d : std::min(side, d);
+    }
+  const double side_range[2] = {kMinSideOffsetMm, kInf};
+  out.add("bilateral_side_mm", side, side_range, "mm",
+          "each of Co, Cr, Go at least half the narrowest bigonial width (~70 mm, children) less a 15 mm shift from its "
+          "side of the symmetry plane",
+          true, "a bilateral landmark lies near or beyond the symmetry plane: landmarks or plane on the wrong structure");
+  const double plane_range[2] = {0.0, kMaxPlaneToAtlasDeg};
+  const bool atlas = s.segmentation_method == "auto" && s.atlas.found;
+  out.add("plane_to_atlas_deg", atlas ? plane_angle_deg(plane.normal, s.atlas.pose.lateral()) : kNaN, plane_range, "deg",
+          "a chin deviated by 15 mm turns the mandible's plane by ~10 deg; the atlas's pose is fitted to a few degrees", true,
+          "the symmetry plane is far from the mid-sagittal plane of the atlas that identified the mandible: the plane or "
+          "the landmarks it was fitted to are wrong");
+  const double cranial_range[2] = {0.0, kMaxPlaneToCraniumDeg};
+  out.add("plane_to_cranium_deg", s.cranial.found ? s.cranial.angle_to_mandible_plane_deg : kNaN, cranial_range, "deg",
+          "the mandible's and the cranium's mirror planes: as plane_to_atlas_deg", false,
+          "the mandible's symmetry plane and the cranium's disagree: one of the two fits is doubtful");
+}
+
+}  // namespace
+
+Qc evaluate_qc(const RunSummary& s) {
+  Qc q;
+  CheckList out{q};
+  atlas_checks(s, out);
+  shape_checks(s, out);
+  symmetry_checks(s, out);
+  // 4. Completeness (warnings).
   int missing = 0;
   for (const std::string& n : landmark_names()) missing += !s.landmarks.landmarks.has(n);
   const double none[2] = {0, 0};
-  add("landmarks_missing", missing, none, "", "all 8 landmarks of METHOD.md are expected on a whole mandible", false,
-      "landmarks are missing; the SAF score uses the configurations that remain");
-  add("truncated", s.truncated ? 1 : 0, none, "", "the mandible must lie inside the scan", false,
-      "the mandible is cut by the scan's edge: scores are not comparable");
+  out.add("landmarks_missing", missing, none, "", "all 8 landmarks of METHOD.md are expected on a whole mandible", false,
+          "landmarks are missing; the SAF score uses the configurations that remain");
+  out.add("truncated", s.truncated ? 1 : 0, none, "", "the mandible must lie inside the scan", false,
+          "the mandible is cut by the scan's edge: scores are not comparable");
   bool fail = false, warn = false;
   for (const QcCheck& c : q.checks)
     if (!c.passed) (c.fatal ? fail : warn) = true;

@@ -42,6 +42,7 @@ struct RunSummary {
   bool closing_plugs_only = false;  // the closing was kept only where it removed handles
   std::size_t vertices_pulled = 0;  // vertices held to one voxel of the mask's boundary (surface.md)
   landmarks::Result landmarks;
+  double landmarks_off_surface_mm = 0;  // the largest distance of a landmark from `surface` (QC)
   landmarks::PalatalPlane palate;  // the palatal plane's fit (found = false: not found or rejected, palate.reason)
   landmarks::HeadFrame head_frame;  // the frame used: palatal plane, mandible atlas or scan axes
   Vec3 head_superior() const { return head_frame.superior; }

@@ -435,6 +435,11 @@ Vec3 Pose::superior() const {
   return normalized(Vec3{A.A[2], A.A[5], A.A[8]});
 }
 
+Vec3 Pose::lateral() const {
+  const Affine A = affine(*this);
+  return normalized(Vec3{A.A[0], A.A[3], A.A[6]});
+}
+
 Vec3 Pose::inverse(const Vec3& p) const {
   // A = scale R M has orthogonal columns of length scale: A^-1 = A^T / scale^2.
   const Affine A = affine(*this);

@@ -64,6 +64,9 @@ struct Pose {
   // The atlas's superior axis in the scan (unit, LPS): the training heads'
   // mean superior direction carried by the pose.
   Vec3 superior() const;
+  // The normal of the atlas's mid-sagittal plane in the scan (unit, LPS; the
+  // atlas is mirror-symmetric, so its sign carries no meaning).
+  Vec3 lateral() const;
   Vec3 inverse(const Vec3& p) const;  // scan -> atlas
 };
 

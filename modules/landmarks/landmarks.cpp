@@ -485,13 +485,31 @@ double symphysis_midline(const Frame& f, double afront, double hlow) {
   return used > 0 ? sum / used : 0.0;
 }
 
+// The height of the surface's lowest crossing of the vertical line at
+// (u, a) in the frame (the line along e_si): the triangles whose (U, A)
+// projection holds the point, interpolated; NaN when none does (a hole).
+double lowest_crossing(const Frame& f, const std::vector<std::array<int, 3>>& faces, double u, double a) {
+  double lowest = kInf;
+  for (const auto& t : faces) {
+    const auto i = static_cast<std::size_t>(t[0]), j = static_cast<std::size_t>(t[1]), k = static_cast<std::size_t>(t[2]);
+    const double u1 = f.U[j] - f.U[i], a1 = f.A[j] - f.A[i], u2 = f.U[k] - f.U[i], a2 = f.A[k] - f.A[i];
+    const double det = u1 * a2 - u2 * a1;
+    if (std::abs(det) < 1e-12) continue;  // a triangle seen edge-on from below
+    const double pu = u - f.U[i], pa = a - f.A[i];
+    const double s = (pu * a2 - u2 * pa) / det, t2 = (u1 * pa - pu * a1) / det;
+    if (s < 0 || t2 < 0 || s + t2 > 1) continue;
+    lowest = std::min(lowest, f.H[i] + s * (f.H[j] - f.H[i]) + t2 * (f.H[k] - f.H[i]));
+  }
+  return lowest < kInf ? lowest : std::numeric_limits<double>::quiet_NaN();
+}
+
 // 4. Midline: menton = lowest point of the symphysis, pogonion = most
 //    anterior point of the chin, both on the symphysis's midline. The
 //    symphysis is the front of the midline band (within 20 mm of its most
 //    anterior point), so that a pitched head does not move menton back along
 //    the flat lower border.
 constexpr double kMidlineStripMm = 3.0;  // half-width of the strip about the symphysis's midline
-void place_midline(const Frame& f, double apex_radius_mm, LandmarkSet& out) {
+void place_midline(const Frame& f, const std::vector<std::array<int, 3>>& faces, double apex_radius_mm, LandmarkSet& out) {
   const auto& V = f.V;
   const auto &U = f.U, &A = f.A, &H = f.H;
   const double umax = f.umax;
@@ -519,15 +537,18 @@ void place_midline(const Frame& f, double apex_radius_mm, LandmarkSet& out) {
     // there is ill-conditioned, and any one vertex of the flat bottom is
     // where the triangulation happened to put it (the same scan mirrored
     // moved it 0.9 mm). Menton is the centre of the bottom — the mean of the
-    // vertices within kPlateauTolMm of the lowest — at the lowest vertex's
-    // height, on the midline.
+    // vertices within kPlateauTolMm of the lowest — on the midline, on the
+    // surface: where the vertical line there leaves the bone at the bottom
+    // (the strip's lowest vertex can lie up to 3 mm to one side, and the
+    // border there 1-2.5 mm lower than on the midline on ~4 mm scans).
     double amean = 0, hmin = kInf;
     int cnt = 0;
     for (int v : sym) hmin = std::min(hmin, H[static_cast<std::size_t>(v)]);
     for (int v : sym)
       if (H[static_cast<std::size_t>(v)] <= hmin + kPlateauTolMm) amean += A[static_cast<std::size_t>(v)], ++cnt;
     amean /= cnt;
-    out.set("Me", f.origin + umid * f.e_ml + amean * e_ap + hmin * e_si);
+    const double hsurf = lowest_crossing(f, faces, umid, amean);
+    out.set("Me", f.origin + umid * f.e_ml + amean * e_ap + (std::isnan(hsurf) ? hmin : hsurf) * e_si);
     const double hme = H[static_cast<std::size_t>(me)];
     // The chin lies below the alveolar process and the incisors: within
     // 18 mm of menton, and below B point (the deepest point of the labial
@@ -764,7 +785,7 @@ Result detect(const Mesh& mesh, const Options& opt) {
   place_gonia(f, gonial, opt.apex_radius_mm, r.landmarks);
 
   // 4. Midline: menton and pogonion (place_midline).
-  place_midline(f, opt.apex_radius_mm, r.landmarks);
+  place_midline(f, mesh.faces, opt.apex_radius_mm, r.landmarks);
 
   // 5. Landmarks at the edge of a truncated scan are missing (drop_landmarks_at_edge).
   bool cut_side[2] = {false, false};

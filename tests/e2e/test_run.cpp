@@ -16,6 +16,7 @@
 #include "core/json_text.h"
 #include "io/itk_geometry.h"
 #include "io/volume_io.h"
+#include "surface/surface.h"
 
 #include <itkBinShrinkImageFilter.h>
 #include <itkDiscreteGaussianImageFilter.h>
@@ -624,6 +625,62 @@ TEST(EndToEnd, ResampledRealScanKeepsMentonOnTheChinsMidline) {
   std::printf("menton deviation %.2f / %.2f mm\n", ma, mb);
   EXPECT_NEAR(ma, mb, 1.5);
   fs::remove_all(dir);
+}
+
+// Distance from p to the triangle (a, b, c): the projection when it falls
+// inside, else the nearest of the three edges.
+double point_triangle_distance(const ms::Vec3& p, const ms::Vec3& a, const ms::Vec3& b, const ms::Vec3& c) {
+  auto sub = [](const ms::Vec3& x, const ms::Vec3& y) { return ms::Vec3{x[0] - y[0], x[1] - y[1], x[2] - y[2]}; };
+  auto dot3 = [](const ms::Vec3& x, const ms::Vec3& y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; };
+  auto cross3 = [](const ms::Vec3& x, const ms::Vec3& y) {
+    return ms::Vec3{x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]};
+  };
+  auto segment = [&](const ms::Vec3& x, const ms::Vec3& y) {
+    const ms::Vec3 d = sub(y, x);
+    const double t = std::clamp(dot3(sub(p, x), d) / std::max(dot3(d, d), 1e-30), 0.0, 1.0);
+    const ms::Vec3 q{x[0] + t * d[0], x[1] + t * d[1], x[2] + t * d[2]};
+    return std::sqrt(dot3(sub(p, q), sub(p, q)));
+  };
+  const ms::Vec3 n = cross3(sub(b, a), sub(c, a));
+  const double nn = dot3(n, n);
+  if (nn > 1e-30) {
+    const double h = dot3(sub(p, a), n) / nn;
+    const ms::Vec3 q{p[0] - h * n[0], p[1] - h * n[1], p[2] - h * n[2]};
+    if (dot3(cross3(sub(b, a), sub(q, a)), n) >= 0 && dot3(cross3(sub(c, b), sub(q, b)), n) >= 0 &&
+        dot3(cross3(sub(a, c), sub(q, c)), n) >= 0)
+      return std::abs(h) * std::sqrt(nn);
+  }
+  return std::min({segment(a, b), segment(b, c), segment(c, a)});
+}
+
+// Menton is a surface point. On openkbp-train pt_182 (a tuning fold, ~4 mm
+// voxels) the lowest vertex of the symphysis's midline strip lies to one
+// side, where the border is lower than on the midline: menton placed at that
+// vertex's height floated 1.47 mm below the bone. It is where the vertical
+// line at its midline position leaves the bone (docs/landmarks.md, step 5);
+// the other landmarks are quadratic apex fits within about a millimetre.
+TEST(EndToEnd, MentonLiesOnTheSurfaceOfACoarseRealScan) {
+  const fs::path ct = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / "pt_182" / "ct.nii.gz";
+  if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("pt182");
+  std::string err;
+  ASSERT_EQ(run("run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o " + out.string(), &err), 0) << err;
+  const Value r = load(out / "results.json");
+  const ms::Mesh mesh = ms::surface::read_vtp((out / "mandible.vtp").string());
+  ASSERT_GT(mesh.faces.size(), 1000u);
+  for (const char* l : {"Co_L", "Co_R", "Cr_L", "Cr_R", "Go_L", "Go_R", "Me", "Pog"}) {
+    const Value& v = r.at("landmarks").at(l);
+    if (v.is_null()) continue;
+    const ms::Vec3 p{v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
+    double d = 1e30;
+    for (const auto& f : mesh.faces)
+      d = std::min(d, point_triangle_distance(p, mesh.vertices[static_cast<std::size_t>(f[0])], mesh.vertices[static_cast<std::size_t>(f[1])],
+                                              mesh.vertices[static_cast<std::size_t>(f[2])]));
+    std::printf("%s %.2f mm off the surface\n", l, d);
+    EXPECT_LE(d, std::string(l) == "Me" ? 0.05 : 1.5) << l;
+  }
+  EXPECT_NE(r.at("qc").at("status").get<std::string>(), "fail");
+  fs::remove_all(out);
 }
 
 // The volume reconstructed at twice its spacing: a Gaussian of sigma

@@ -1,6 +1,7 @@
 // Quality control (docs/qc.md): which summaries pass, warn and fail.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "reports/qc.h"
@@ -12,7 +13,9 @@ using namespace ms::reports;
 namespace {
 
 // An adult mandible found where the atlas puts it: 8 landmarks, condyles
-// 100 mm apart and 60 mm above menton, 65 cm3, upright fit 0.80 vs 0.50.
+// 100 mm apart and 85 mm above menton, gonia 96 mm apart, rami 53 mm high,
+// gonial angles 119 degrees, 65 cm3, upright fit 0.80 vs 0.50; its symmetry
+// plane x = 0 (the atlas's, unturned).
 RunSummary good_run() {
   RunSummary s;
   s.segmentation_method = "auto";
@@ -22,10 +25,17 @@ RunSummary good_run() {
   s.atlas.mirrored_ncc = 0.50;
   s.atlas_agreement = 0.55;
   const std::pair<const char*, Vec3> pts[] = {{"Co_L", {50, 10, 60}}, {"Co_R", {-50, 10, 60}}, {"Cr_L", {45, -10, 55}},
-                                              {"Cr_R", {-45, -10, 55}}, {"Go_L", {48, 15, 5}}, {"Go_R", {-48, 15, 5}},
-                                              {"Me", {0, -70, 0}}, {"Pog", {0, -75, 10}}};
+                                              {"Cr_R", {-45, -10, 55}}, {"Go_L", {48, 2, 8}}, {"Go_R", {-48, 2, 8}},
+                                              {"Me", {0, -70, -25}}, {"Pog", {0, -75, -15}}};
   for (const auto& [n, p] : pts) s.landmarks.landmarks.set(n, p);
+  s.reference.plane.point = {0, 0, 0};
+  s.reference.plane.normal = {1, 0, 0};
   return s;
+}
+
+void erase(RunSummary& s, const std::string& name) {
+  auto& p = s.landmarks.landmarks.points;
+  p.erase(std::remove_if(p.begin(), p.end(), [&](const auto& x) { return x.first == name; }), p.end());
 }
 
 const QcCheck* check(const Qc& q, const std::string& name) {
@@ -89,4 +99,60 @@ TEST(Qc, MissingLandmarksAndTruncationWarn) {
   const Qc q = evaluate_qc(s);
   EXPECT_EQ(q.status, "warn");
   EXPECT_EQ(check(q, "landmarks_missing")->value, 1.0);
+}
+
+// openkbp-train pt_47 (held-out fold) before these checks: a good mask (Dice
+// 0.88) whose symmetry plane was fitted 70 degrees off, with Go_R on the left
+// of the midline and Co_R at the height of the gonia; QC only warned (two
+// coronoids missing).
+TEST(Qc, LandmarksOnTheWrongStructureFailTheShapeAndSideChecks) {
+  RunSummary s = good_run();
+  s.landmarks.landmarks.set("Go_R", {20, 0, 5});     // on the left, 28 mm from Go_L
+  s.landmarks.landmarks.set("Co_R", {-30, -30, 10});  // down at the body
+  const Qc q = evaluate_qc(s);
+  EXPECT_EQ(q.status, "fail");
+  for (const char* n : {"bilateral_side_mm", "gonial_angle_deg", "bigonial_width_mm"}) {
+    ASSERT_NE(check(q, n), nullptr) << n;
+    EXPECT_FALSE(check(q, n)->passed) << n << " = " << check(q, n)->value;
+    EXPECT_TRUE(check(q, n)->fatal) << n;
+  }
+  EXPECT_NEAR(check(q, "bilateral_side_mm")->value, -20.0, 1e-9) << "Go_R 20 mm on the left";
+  EXPECT_TRUE(check(q, "ramus_height_mm")->passed) << "58.5 mm, a ramus's height by chance";
+  s.landmarks.landmarks.set("Go_R", {-5, -65, -20});  // at the chin
+  EXPECT_FALSE(check(evaluate_qc(s), "body_length_mm")->passed);
+  s.landmarks.landmarks.set("Co_R", {-45, 0, 12});     // 4 mm above its gonion
+  s.landmarks.landmarks.set("Go_R", {-48, 2, 8});
+  EXPECT_FALSE(check(evaluate_qc(s), "ramus_height_mm")->passed);
+}
+
+TEST(Qc, ASideWithoutItsLandmarksIsJudgedOnTheOther) {
+  RunSummary s = good_run();
+  for (const char* n : {"Co_R", "Go_R"}) erase(s, n);
+  const Qc q = evaluate_qc(s);
+  EXPECT_NEAR(check(q, "ramus_height_mm")->value, std::sqrt(2.0 * 2 + 8 * 8 + 52 * 52), 1e-9);
+  EXPECT_TRUE(std::isnan(check(q, "bigonial_width_mm")->value));
+  EXPECT_EQ(q.status, "warn") << "only the missing landmarks";
+}
+
+TEST(Qc, APlaneFarFromTheAtlassFailsAndFromTheCraniumsWarns) {
+  const double kDeg = 3.14159265358979323846 / 180.0;
+  RunSummary s = good_run();
+  s.reference.plane.normal = {std::cos(10 * kDeg), std::sin(10 * kDeg), 0};  // a deviated chin's turn
+  Qc q = evaluate_qc(s);
+  EXPECT_NEAR(check(q, "plane_to_atlas_deg")->value, 10.0, 1e-6);
+  EXPECT_EQ(q.status, "pass");
+  s.reference.plane.normal = {-std::cos(10 * kDeg), -std::sin(10 * kDeg), 0};  // the atlas's axis has no sign
+  EXPECT_NEAR(check(evaluate_qc(s), "plane_to_atlas_deg")->value, 10.0, 1e-6);
+  s.reference.plane.normal = {std::cos(10 * kDeg), std::sin(10 * kDeg), 0};
+  s.reference.plane.normal = {std::cos(30 * kDeg), 0, std::sin(30 * kDeg)};
+  q = evaluate_qc(s);
+  EXPECT_NEAR(check(q, "plane_to_atlas_deg")->value, 30.0, 1e-6);
+  EXPECT_FALSE(check(q, "plane_to_atlas_deg")->passed);
+  EXPECT_EQ(q.status, "fail");
+  s = good_run();
+  s.cranial.found = true;
+  s.cranial.angle_to_mandible_plane_deg = 20;
+  q = evaluate_qc(s);
+  EXPECT_FALSE(check(q, "plane_to_cranium_deg")->passed);
+  EXPECT_EQ(q.status, "warn");
 }
