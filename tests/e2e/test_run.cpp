@@ -833,7 +833,8 @@ TEST(EndToEnd, ObliquePoseScoresBelowATwoMillimetreRamusDifference) {
 // cortex, densities, joint space, occlusal gap, crowns). A rule tuned to the
 // one adult model fails here: each member is either right (volume within 5 %
 // of the truth, every landmark within 3 mm) or refused by the quality gate
-// (exit 8) — never a confident wrong answer — and most are right. Measured at
+// (exit 8) — never a confident wrong answer, and never a right one refused —
+// and most are right. Measured at
 // 1 mm: 7 right (volumes within 5 %, landmarks <= 1.5 mm), member 8 exits 8
 // (separations_agree 0.72: its rami reach beyond the atlas's support grown by
 // 5 mm, docs/segmentation.md).
@@ -865,6 +866,7 @@ TEST(EndToEnd, RandomAnatomyFamilyIsRightOrRefused) {
     std::printf("%s: exit %d, volume %.1f of %.1f cm3, worst landmark %.1f mm, qc %s\n", name.c_str(), code, volume / 1000,
                 true_volume / 1000, worst, r.at("qc").at("status").get<std::string>().c_str());
     EXPECT_TRUE(is_right || code == 8) << name << ": a wrong answer that passed the quality gate";
+    EXPECT_FALSE(is_right && code == 8) << name << ": a right answer refused by the quality gate";
     right += is_right;
     fs::remove_all(ph);
     fs::remove_all(out);
