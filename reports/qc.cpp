@@ -80,6 +80,14 @@ constexpr double kMaxPlaneToCraniumDeg = 15.0;
 // off it (openkbp-train: at most 1.08 mm); twice that.
 constexpr double kMaxLandmarkOffSurfaceMm = 2.0;
 
+// Left and right process tips mirrored through the symmetry plane: the
+// condyle and the coronoid of a side stand ~25-35 mm apart, so one process
+// taken for the other puts the pair 20+ mm apart; marked asymmetry
+// (hemimandibular elongation, a hyperplastic condyle) moves a process by
+// ~10 mm against its own mandible's plane. A warning: the bound is near what
+// a real patient can have.
+constexpr double kMaxProcessMismatchMm = 20.0;
+
 constexpr double kPi = 3.14159265358979323846;
 
 double angle_deg(const Vec3& a, const Vec3& b) {
@@ -209,6 +217,16 @@ void symmetry_checks(const RunSummary& s, CheckList& out) {
           "each of Co, Cr, Go at least half the narrowest bigonial width (~70 mm, children) less a 15 mm shift from its "
           "side of the symmetry plane",
           true, "a bilateral landmark lies near or beyond the symmetry plane: landmarks or plane on the wrong structure");
+  double mismatch = kNaN;
+  for (const char* n : {"Co", "Cr"}) {
+    const Vec3 *l = s.landmarks.landmarks.find(std::string(n) + "_L"), *r = s.landmarks.landmarks.find(std::string(n) + "_R");
+    if (l && r) mismatch = std::isnan(mismatch) ? distance(plane.reflect(*r), *l) : std::max(mismatch, distance(plane.reflect(*r), *l));
+  }
+  const double mismatch_range[2] = {0.0, kMaxProcessMismatchMm};
+  out.add("process_pair_mismatch_mm", mismatch, mismatch_range, "mm",
+          "a side's condyle and coronoid stand ~25-35 mm apart; marked asymmetry moves a process ~10 mm", false,
+          "a condylion or coronoid tip lies far from its mirrored partner: one process may have been taken for the other "
+          "(or the asymmetry is marked); check the landmarks in the report");
   const double plane_range[2] = {0.0, kMaxPlaneToAtlasDeg};
   const bool atlas = s.segmentation_method == "auto" && s.atlas.found;
   out.add("plane_to_atlas_deg", atlas ? plane_angle_deg(plane.normal, s.atlas.pose.lateral()) : kNaN, plane_range, "deg",

@@ -156,3 +156,20 @@ TEST(Qc, APlaneFarFromTheAtlassFailsAndFromTheCraniumsWarns) {
   EXPECT_FALSE(check(q, "plane_to_cranium_deg")->passed);
   EXPECT_EQ(q.status, "warn");
 }
+
+// A coronoid taken for the condyle on one side: the pair, mirrored, stands
+// the condyle-coronoid distance apart (openkbp-train folds 1-4: pt_30, pt_97
+// Cr_R and pt_96, pt_119 Co_R 24-33 mm from the clinical contour's, with
+// their pairs 26-33 mm apart). Marked asymmetry can come near the bound,
+// so it only warns.
+TEST(Qc, AProcessFarFromItsMirroredPartnerWarns) {
+  RunSummary s = good_run();
+  EXPECT_NEAR(check(evaluate_qc(s), "process_pair_mismatch_mm")->value, 0.0, 1e-9);
+  s.landmarks.landmarks.set("Co_R", {-45, -10, 55});  // the right coronoid's tip
+  const Qc q = evaluate_qc(s);
+  const QcCheck* c = check(q, "process_pair_mismatch_mm");
+  EXPECT_NEAR(c->value, std::sqrt(5.0 * 5 + 20 * 20 + 5 * 5), 1e-9);
+  EXPECT_FALSE(c->passed);
+  EXPECT_FALSE(c->fatal);
+  EXPECT_EQ(q.status, "warn");
+}
