@@ -106,17 +106,6 @@ double deciding_side(double l, double r, const double range[2]) {
   return std::abs(l - mid) >= std::abs(r - mid) ? l : r;
 }
 
-}  // namespace
-
-std::vector<const QcCheck*> Qc::failed() const {
-  std::vector<const QcCheck*> f;
-  for (const QcCheck& c : checks)
-    if (!c.passed) f.push_back(&c);
-  return f;
-}
-
-namespace {
-
 const double kInf = std::numeric_limits<double>::infinity();
 
 // Appends checks to a Qc; a NaN value is "not measured" and passes.
@@ -260,6 +249,13 @@ Qc evaluate_qc(const RunSummary& s) {
     if (!c.passed) (c.fatal ? fail : warn) = true;
   q.status = fail ? "fail" : warn ? "warn" : "pass";
   return q;
+}
+
+std::vector<const QcCheck*> Qc::failed() const {
+  std::vector<const QcCheck*> f;
+  for (const QcCheck& c : checks)
+    if (!c.passed) f.push_back(&c);
+  return f;
 }
 
 }  // namespace ms::reports
