@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "reports/run_summary.h"
 
@@ -196,11 +197,12 @@ void shape_checks(const RunSummary& s, CheckList& out) {
 void symmetry_checks(const RunSummary& s, CheckList& out) {
   const Plane& plane = s.reference.plane;  // normal to the patient's left
   double side = kNaN;
-  for (const char* n : {"Co_L", "Cr_L", "Go_L", "Co_R", "Cr_R", "Go_R"})
-    if (const Vec3* p = s.landmarks.landmarks.find(n)) {
-      const double d = plane.signed_distance(*p) * (n[3] == 'L' ? 1.0 : -1.0);
-      side = std::isnan(side) ? d : std::min(side, d);
-    }
+  for (const char* name : {"Co", "Cr", "Go"})
+    for (const auto& [suffix, sign] : {std::pair<const char*, double>{"_L", 1.0}, {"_R", -1.0}})
+      if (const Vec3* p = s.landmarks.landmarks.find(std::string(name) + suffix)) {
+        const double d = sign * plane.signed_distance(*p);  // + on the landmark's own side
+        side = std::isnan(side) ? d : std::min(side, d);
+      }
   const double side_range[2] = {kMinSideOffsetMm, kInf};
   out.add("bilateral_side_mm", side, side_range, "mm",
           "each of Co, Cr, Go at least half the narrowest bigonial width (~70 mm, children) less a 15 mm shift from its "

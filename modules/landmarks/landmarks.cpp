@@ -463,8 +463,8 @@ void place_gonia(const Frame& f, const GonialSide (&gonial)[2], double apex_radi
 // are flat across it (within 0.5-1 mm over +-15 mm on the Visible Human
 // female), so their lowest and most anterior points are ill-conditioned
 // laterally: openkbp-train pt_92 resampled (turned 10 degrees and back)
-// moved "the lowest point" 9.8 mm across the chin. The midline is where the arch's outer walls are: the lateral
-// middle of the surface in slabs kArchSlabMm thick at kArchDepthsMm behind
+// moved "the lowest point" 9.8 mm across the chin. The midline is where the
+// arch's outer walls are: the lateral middle of the surface in slabs kArchSlabMm thick at kArchDepthsMm behind
 // the chin's front, at the chin's level (up to kChinLevelMm above the
 // symphysis's lowest point, below the tooth roots). It follows a deviated
 // chin (the walls move with it) and mirrors with the scan. Returns U; 0 (the

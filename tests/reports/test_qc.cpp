@@ -134,7 +134,7 @@ TEST(Qc, ASideWithoutItsLandmarksIsJudgedOnTheOther) {
   EXPECT_EQ(q.status, "warn") << "only the missing landmarks";
 }
 
-TEST(Qc, APlaneFarFromTheAtlassFailsAndFromTheCraniumsWarns) {
+TEST(Qc, APlaneFarFromTheAtlasFailsAndFromTheCraniumWarns) {
   const double kDeg = 3.14159265358979323846 / 180.0;
   RunSummary s = good_run();
   s.reference.plane.normal = {std::cos(10 * kDeg), std::sin(10 * kDeg), 0};  // a deviated chin's turn
