@@ -233,6 +233,7 @@ surface::Result surface_stage(const Volume& ct, const segmentation::Result& seg,
   S.genus_before_closing = surf.genus_before_closing;
   S.closing_plugs_only = surf.closing_plugs_only;
   S.vertices_pulled = surf.vertices_pulled;
+  S.voxels_joining = surf.voxels_joining;
   if (surf.largest_pull_mm > 0.25 * std::max(mo.target_edge_mm, 1.0))
     S.warnings.push_back("surface: " + std::to_string(surf.vertices_pulled) + " vertices pulled up to " + num(surf.largest_pull_mm) +
                          " mm back to within a voxel of the mask (docs/surface.md); the triangles around them were not re-checked");

@@ -243,7 +243,8 @@ Qc evaluate_qc(const RunSummary& s) {
   for (const std::string& n : landmark_names()) missing += !s.landmarks.landmarks.has(n);
   const double none[2] = {0, 0};
   out.add("landmarks_missing", missing, none, "", "all 8 landmarks of METHOD.md are expected on a whole mandible", false,
-          "landmarks are missing; the SAF score uses the configurations that remain");
+          s.saf.score >= 0 ? "landmarks are missing; the SAF score uses the configurations that remain"
+                           : "landmarks are missing; every SAF configuration needs one of them, so there is no SAF score");
   out.add("truncated", s.truncated ? 1 : 0, none, "", "the mandible must lie inside the scan", false,
           "the mandible is cut by the scan's edge: scores are not comparable");
   bool fail = false, warn = false;

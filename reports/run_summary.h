@@ -41,6 +41,7 @@ struct RunSummary {
   int genus_before_closing = -1;  // genus of the unclosed surface when automatic closing ran
   bool closing_plugs_only = false;  // the closing was kept only where it removed handles
   std::size_t vertices_pulled = 0;  // vertices held to one voxel of the mask's boundary (surface.md)
+  std::size_t voxels_joining = 0;   // voxels joining mask pieces that touch only diagonally (surface.md)
   landmarks::Result landmarks;
   double landmarks_off_surface_mm = 0;  // the largest distance of a landmark from `surface` (QC)
   landmarks::PalatalPlane palate;  // the palatal plane's fit (found = false: not found or rejected, palate.reason)

@@ -221,6 +221,7 @@ static Json mesh_json(const RunSummary& s) {
   mesh["closing_scope"] = s.closing_mm <= 0 ? "none" : s.closing_plugs_only ? "handles" : "everywhere";
   mesh["genus_before_closing"] = s.genus_before_closing >= 0 ? Value(s.genus_before_closing) : Value();
   mesh["vertices_pulled_to_mask"] = s.vertices_pulled;
+  mesh["voxels_joining_pieces"] = s.voxels_joining;
   return mesh;
 }
 

@@ -28,4 +28,18 @@ struct Components {
 Components label_components(const std::uint8_t* mask, const Dims3& dims, bool fully_connected, std::size_t min_voxels,
                             std::uint32_t* out);
 
+// Joins the pieces of mask that touch only at a voxel edge or corner, so that
+// its face-connected (6) components are its fully connected (26) ones: the
+// pieces an iso-surface at 0.5 keeps apart are those the mask itself keeps
+// apart. A bone one voxel thin (a condylar neck at ~4.5 mm voxels) is often
+// continuous only diagonally. Each join sets one background voxel that is a
+// face neighbour of both pieces (an edge contact); a corner contact first
+// gains the voxel that makes it an edge contact. Of the voxels that would
+// join the same pieces, the one with the most set voxels among its 26
+// neighbours is used (the first in storage order on a tie; one that also
+// touches a third piece only when no other joins the two), and only one join
+// per pair of pieces, so no join closes a loop between pieces. Only pieces
+// that touch are joined. Returns the number of voxels set.
+std::size_t join_diagonal_contacts(std::uint8_t* mask, const Dims3& dims);
+
 }  // namespace ms

@@ -27,6 +27,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/components.h"
 #include "core/debug_lap.h"
 #include "core/distance_transform.h"
 #include "core/error.h"
@@ -607,6 +608,13 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   const bool flip = order > 0;
   Mask crop;
   crop.data = crop_values(mask.data, g, lo, hi, flip ? lateral : -1);
+  // The iso-surface keeps apart what touches only at a voxel edge or corner;
+  // the mask's pieces are joined there first (in the canonical crop, so a
+  // mirrored mask gains the mirrored voxels).
+  const std::size_t joining =
+      join_diagonal_contacts(crop.data.data(), Dims3{static_cast<std::size_t>(hi[0] - lo[0] + 1),
+                                                     static_cast<std::size_t>(hi[1] - lo[1] + 1),
+                                                     static_cast<std::size_t>(hi[2] - lo[2] + 1)});
   Volume guide;
   if (opt.guide) guide.hu = crop_values(opt.guide->hu, g, lo, hi, flip ? lateral : -1);
   // The crop's grid; mirrored, the grid the unmirrored crop has in the
@@ -629,6 +637,7 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
     in_crop.second[a] = m ? hi[a] - box.first[a] : box.second[a] - lo[a];
   }
   Result r = mesh_as_stored(crop, in_crop, o);
+  r.voxels_joining = joining;
   if (flip) {
     // Back through the grid's mid-plane across the lateral axis.
     const double mid = 0.5 * (static_cast<double>(g.size[lateral]) - 1.0);

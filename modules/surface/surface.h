@@ -84,6 +84,7 @@ struct Result {
   int genus_before_closing = -1;  // genus of the unclosed surface when auto closing ran
   bool closing_plugs_only = false;  // the closing was kept only where it changed the topology
   std::size_t vertices_pulled = 0;  // vertices pulled back to max_boundary_distance_voxels
+  std::size_t voxels_joining = 0;   // voxels set to join pieces touching only diagonally (step 1)
   double largest_pull_mm = 0;       // the largest such move
 };
 

@@ -89,3 +89,63 @@ TEST(Components, EmptyAndFullGrids) {
   EXPECT_EQ(std::count(out.begin(), out.end(), 1u), 24);
   EXPECT_EQ(ms::label_components(m.data(), d, true, 25, out.data()).count, 0u);  // under the minimum
 }
+
+namespace {
+
+std::size_t count_components(const std::vector<std::uint8_t>& m, const ms::Dims3& d, bool full) {
+  std::vector<std::uint32_t> out(m.size());
+  return ms::label_components(m.data(), d, full, 0, out.data()).count;
+}
+
+}  // namespace
+
+// Pieces that touch only at an edge or a corner are joined by the fewest
+// voxels (one per edge contact, two per corner contact), without touching
+// what is face-connected already.
+TEST(Components, JoinDiagonalContactsLikeTheIsoSurfaceNeedsThem) {
+  const ms::Dims3 d{6, 6, 6};
+  auto at = [&](long x, long y, long z) { return static_cast<std::size_t>(x + 6 * (y + 6 * z)); };
+  std::vector<std::uint8_t> edge(216, 0);
+  edge[at(1, 1, 1)] = edge[at(1, 1, 2)] = 1;  // a bar, and a voxel touching its top along an edge
+  edge[at(2, 1, 3)] = 1;
+  std::vector<std::uint8_t> joined = edge;
+  EXPECT_EQ(ms::join_diagonal_contacts(joined.data(), d), 1u);
+  EXPECT_EQ(count_components(joined, d, false), 1u);
+  // Of the two voxels between them, the one with more set neighbours: (2, 1, 2), beside the bar.
+  EXPECT_EQ(joined[at(2, 1, 2)], 1);
+  std::vector<std::uint8_t> corner(216, 0);
+  corner[at(1, 1, 1)] = corner[at(2, 2, 2)] = 1;
+  EXPECT_EQ(ms::join_diagonal_contacts(corner.data(), d), 2u);
+  EXPECT_EQ(count_components(corner, d, false), 1u);
+  std::vector<std::uint8_t> apart(216, 0);  // one voxel apart: not touching, not joined
+  apart[at(1, 1, 1)] = apart[at(3, 1, 1)] = 1;
+  EXPECT_EQ(ms::join_diagonal_contacts(apart.data(), d), 0u);
+  EXPECT_EQ(count_components(apart, d, false), 2u);
+  std::vector<std::uint8_t> solid(216, 0);  // face-connected already: unchanged
+  for (long z = 1; z < 5; ++z) solid[at(2, 2, z)] = solid[at(3, 2, z)] = 1;
+  const auto before = solid;
+  EXPECT_EQ(ms::join_diagonal_contacts(solid.data(), d), 0u);
+  EXPECT_EQ(solid, before);
+}
+
+// On sparse random grids (many diagonal contacts): afterwards the face-
+// connected pieces are the fully connected ones, the mask only grew, and by
+// at most two voxels per piece joined.
+TEST(Components, JoinDiagonalContactsOnRandomGrids) {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 40; ++trial) {
+    const ms::Dims3 d{6 + rng() % 14, 5 + rng() % 12, 4 + rng() % 10};
+    const double fill = 0.05 + 0.03 * (trial % 5);
+    std::vector<std::uint8_t> m(d[0] * d[1] * d[2]);
+    std::bernoulli_distribution b(fill);
+    for (auto& v : m) v = b(rng);
+    const std::size_t faces = count_components(m, d, false), full = count_components(m, d, true);
+    std::vector<std::uint8_t> j = m;
+    const std::size_t added = ms::join_diagonal_contacts(j.data(), d);
+    const std::size_t full_after = count_components(j, d, true);
+    EXPECT_EQ(count_components(j, d, false), full_after) << "trial " << trial;
+    EXPECT_LE(full_after, full);
+    EXPECT_LE(added, 2 * (faces - full_after)) << "trial " << trial;
+    for (std::size_t v = 0; v < m.size(); ++v) EXPECT_LE(m[v], j[v]);
+  }
+}

@@ -683,6 +683,62 @@ TEST(EndToEnd, MentonLiesOnTheSurfaceOfACoarseRealScan) {
   fs::remove_all(out);
 }
 
+// Winding number of a closed mesh around p: the triangles' solid angles
+// (Van Oosterom and Strackee 1983) over 4 pi; 1 inside an outward mesh, 0 outside.
+double winding_number(const ms::Mesh& mesh, const ms::Vec3& p) {
+  double sum = 0;
+  for (const auto& f : mesh.faces) {
+    ms::Vec3 r[3];
+    double l[3];
+    for (int k = 0; k < 3; ++k) {
+      const ms::Vec3& v = mesh.vertices[static_cast<std::size_t>(f[static_cast<std::size_t>(k)])];
+      r[k] = {v[0] - p[0], v[1] - p[1], v[2] - p[2]};
+      l[k] = std::sqrt(r[k][0] * r[k][0] + r[k][1] * r[k][1] + r[k][2] * r[k][2]);
+    }
+    auto dot3 = [](const ms::Vec3& x, const ms::Vec3& y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; };
+    const double triple = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) -
+                          r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0]) +
+                          r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+    const double den = l[0] * l[1] * l[2] + dot3(r[0], r[1]) * l[2] + dot3(r[1], r[2]) * l[0] + dot3(r[2], r[0]) * l[1];
+    sum += 2 * std::atan2(triple, den);
+  }
+  return sum / (4 * M_PI);
+}
+
+// The surface holds the whole mask. At ~4.8 mm voxels a condylar neck one
+// voxel thin is often continuous only across a voxel edge: on openkbp-train
+// pt_172 (a tuning fold) the left condyle, 24 voxels, touched the ramus only
+// diagonally, the iso-surface left it apart, the mesh kept its largest piece
+// and Co_L was reported missing. The pieces are joined before contouring
+// (docs/surface.md, step 1): every voxel centre of the mask lies inside the
+// mesh, and all 8 landmarks are found.
+TEST(EndToEnd, CondyleTouchingTheRamusDiagonallyStaysOnTheSurface) {
+  const fs::path ct = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / "pt_172" / "ct.nii.gz";
+  if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("pt172");
+  std::string err;
+  ASSERT_EQ(run("run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o " + out.string(), &err), 0) << err;
+  const Value r = load(out / "results.json");
+  const ms::Mesh mesh = ms::surface::read_vtp((out / "mandible.vtp").string());
+  const ms::Volume mask = ms::io::read_scan((out / "mandible_mask.nii.gz").string()).volume;
+  std::size_t voxels = 0, outside = 0;
+  for (std::size_t k = 0; k < mask.geom.size[2]; ++k)
+    for (std::size_t j = 0; j < mask.geom.size[1]; ++j)
+      for (std::size_t i = 0; i < mask.geom.size[0]; ++i) {
+        if (mask.hu[i + mask.geom.size[0] * (j + mask.geom.size[1] * k)] < 0.5f) continue;
+        ++voxels;
+        outside += winding_number(mesh, mask.geom.index_to_lps(static_cast<double>(i), static_cast<double>(j),
+                                                               static_cast<double>(k))) < 0.5;
+      }
+  std::printf("%zu of %zu mask voxel centres outside the mesh\n", outside, voxels);
+  EXPECT_GT(voxels, 300u);
+  EXPECT_EQ(outside, 0u);
+  EXPECT_GT(r.at("mesh").at("voxels_joining_pieces").get<int>(), 0);
+  for (const char* l : {"Co_L", "Co_R", "Cr_L", "Cr_R", "Go_L", "Go_R", "Me", "Pog"})
+    EXPECT_FALSE(r.at("landmarks").at(l).is_null()) << l;
+  fs::remove_all(out);
+}
+
 // The volume reconstructed at twice its spacing: a Gaussian of sigma
 // `sigma_voxels` along each axis (the wider slice profile of a coarser
 // reconstruction), then the mean of each 2 x 2 x 2 block (ITK's

@@ -511,6 +511,46 @@ TEST(Surface, MirrorImageMaskGivesTheMirrorImageMesh) {
   }
 }
 
+// A coarse mask (4.5 x 4.5 x 3 mm, OpenKBP-like) whose upper part touches
+// the lower only across a voxel edge, as a one-voxel condylar neck does:
+// the iso-surface alone leaves the two apart and the mesh kept the larger.
+// Joined first (docs/surface.md, step 1), the mesh is one piece holding
+// both, and the mirror-image mask still gives the mirror-image mesh.
+TEST(Surface, PiecesTouchingAcrossAVoxelEdgeAreOneSurface) {
+  ms::Mask m;
+  m.geom.size = {12, 10, 14};
+  m.geom.spacing = {4.5, 4.5, 3.0};
+  m.data.assign(m.geom.voxel_count(), 0);
+  for (std::size_t k = 2; k < 8; ++k)  // the ramus: 2 x 3 voxels wide
+    for (std::size_t j = 3; j < 6; ++j)
+      for (std::size_t i = 3; i < 5; ++i) m.data[m.geom.linear(i, j, k)] = 1;
+  for (std::size_t k = 8; k < 12; ++k) m.data[m.geom.linear(5, 4, k)] = 1;  // the neck, one edge off the ramus
+  ms::Mask mirrored = m;
+  for (std::size_t k = 0; k < 14; ++k)
+    for (std::size_t j = 0; j < 10; ++j)
+      for (std::size_t i = 0; i < 12; ++i) mirrored.data[m.geom.linear(11 - i, j, k)] = m.data[m.geom.linear(i, j, k)];
+  const auto a = ms::surface::mesh_from_mask(m);
+  const auto b = ms::surface::mesh_from_mask(mirrored);
+  EXPECT_GE(a.voxels_joining, 1u);
+  EXPECT_EQ(a.voxels_joining, b.voxels_joining);
+  // Both pieces: from the ramus's lower face (k 1.5, z 4.5 mm) to the neck's upper one (k 11.5, z 34.5 mm).
+  double low = 1e30, high = -1e30;
+  for (const auto& v : a.mesh.vertices) low = std::min(low, v[2]), high = std::max(high, v[2]);
+  std::printf("z %.1f to %.1f mm, %zu voxel(s) joining\n", low, high, a.voxels_joining);
+  EXPECT_NEAR(low, 4.5, 1.5);
+  EXPECT_NEAR(high, 34.5, 1.5);
+  EXPECT_EQ(a.stats.genus, 0);
+  EXPECT_TRUE(a.stats.closed);
+  ASSERT_EQ(a.mesh.vertices.size(), b.mesh.vertices.size());
+  const ms::Plane mid{m.geom.index_to_lps(5.5, 0, 0), {1, 0, 0}};
+  double worst = 0;
+  for (std::size_t v = 0; v < a.mesh.vertices.size(); ++v) {
+    const ms::Vec3 r = mid.reflect(a.mesh.vertices[v]);
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(r[c] - b.mesh.vertices[v][c]));
+  }
+  EXPECT_LT(worst, 1e-6);
+}
+
 TEST(SurfaceRepair, FillsAHoleAndKeepsTheShape) {
   const Ellipsoid e;
   ms::surface::Options opt;
