@@ -101,6 +101,20 @@ TEST(Qc, MissingLandmarksAndTruncationWarn) {
   EXPECT_EQ(check(q, "landmarks_missing")->value, 1.0);
 }
 
+// The missing-landmark warning says whether a SAF score remains: every
+// configuration contains a condylion, so without one there is none.
+TEST(Qc, MissingLandmarksSayWhetherASafScoreRemains) {
+  RunSummary s = good_run();
+  erase(s, "Cr_L");
+  s.saf.score = 0.12;  // Co-Pog|Go-Me remains
+  EXPECT_NE(check(evaluate_qc(s), "landmarks_missing")->message.find("uses the configurations that remain"), std::string::npos);
+  erase(s, "Co_L");
+  s.saf.score = -1;  // not computed
+  const Qc q = evaluate_qc(s);
+  ASSERT_FALSE(q.failed().empty());
+  EXPECT_NE(check(q, "landmarks_missing")->message.find("no SAF score"), std::string::npos);
+}
+
 // openkbp-train pt_47 (held-out fold) before these checks: a good mask (Dice
 // 0.88) whose symmetry plane was fitted 70 degrees off, with Go_R on the left
 // of the midline and Co_R at the height of the gonia; QC only warned (two
