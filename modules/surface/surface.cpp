@@ -608,6 +608,7 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   const bool flip = order > 0;
   Mask crop;
   crop.data = crop_values(mask.data, g, lo, hi, flip ? lateral : -1);
+  lap(flip ? "orientation: crop, mirrored" : "orientation: crop, as stored");
   // The iso-surface keeps apart what touches only at a voxel edge or corner;
   // the mask's pieces are joined there first (in the canonical crop, so a
   // mirrored mask gains the mirrored voxels).
@@ -615,6 +616,7 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
       join_diagonal_contacts(crop.data.data(), Dims3{static_cast<std::size_t>(hi[0] - lo[0] + 1),
                                                      static_cast<std::size_t>(hi[1] - lo[1] + 1),
                                                      static_cast<std::size_t>(hi[2] - lo[2] + 1)});
+  lap("join diagonal contacts");
   Volume guide;
   if (opt.guide) guide.hu = crop_values(opt.guide->hu, g, lo, hi, flip ? lateral : -1);
   // The crop's grid; mirrored, the grid the unmirrored crop has in the
@@ -627,7 +629,6 @@ Result mesh_from_mask(const Mask& mask, const Options& opt) {
   guide.geom = crop.geom;
   Options o = opt;
   if (opt.guide) o.guide = &guide;
-  lap(flip ? "orientation: crop, mirrored" : "orientation: crop, as stored");
 
   // The mask's box in the crop (mirrored: hi - x along the lateral axis).
   Box in_crop;
