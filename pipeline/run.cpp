@@ -261,10 +261,9 @@ void landmarks_stage(const Volume& ct, const segmentation::Result& seg, const Me
   po.air_hu += seg.offset_hu;
   if (seg.atlas.found) po.atlas_superior = seg.atlas.pose.superior();
   S.landmarks = landmarks::detect_in_head_frame(ct, mesh, lo, po, &S.palate, &S.head_frame);
-  const geometry::ClosestPointIndex index(mesh);
-  S.landmarks_off_surface_mm = 0;
+  S.landmarks_off_surface_mm = 0;  // eight queries: cheaper than building an index
   for (const auto& [name, p] : S.landmarks.landmarks.points)
-    S.landmarks_off_surface_mm = std::max(S.landmarks_off_surface_mm, distance(p, index.closest(p).point));
+    S.landmarks_off_surface_mm = std::max(S.landmarks_off_surface_mm, distance(p, geometry::closest_point_brute_force(mesh, p)));
   for (const auto& w : S.landmarks.warnings) S.warnings.push_back(w);
   for (const auto& m : S.landmarks.missing) {
     const auto why = S.landmarks.why_missing.find(m);

@@ -211,7 +211,9 @@ void symmetry_checks(const RunSummary& s, CheckList& out) {
   double mismatch = kNaN;
   for (const char* n : {"Co", "Cr"}) {
     const Vec3 *l = s.landmarks.landmarks.find(std::string(n) + "_L"), *r = s.landmarks.landmarks.find(std::string(n) + "_R");
-    if (l && r) mismatch = std::isnan(mismatch) ? distance(plane.reflect(*r), *l) : std::max(mismatch, distance(plane.reflect(*r), *l));
+    if (!l || !r) continue;
+    const double d = distance(plane.reflect(*r), *l);
+    mismatch = std::isnan(mismatch) ? d : std::max(mismatch, d);
   }
   const double mismatch_range[2] = {0.0, kMaxProcessMismatchMm};
   out.add("process_pair_mismatch_mm", mismatch, mismatch_range, "mm",
@@ -243,8 +245,9 @@ Qc evaluate_qc(const RunSummary& s) {
   for (const std::string& n : landmark_names()) missing += !s.landmarks.landmarks.has(n);
   const double none[2] = {0, 0};
   out.add("landmarks_missing", missing, none, "", "all 8 landmarks of METHOD.md are expected on a whole mandible", false,
-          s.saf.score >= 0 ? "landmarks are missing; the SAF score uses the configurations that remain"
-                           : "landmarks are missing; every SAF configuration needs one of them, so there is no SAF score");
+          s.saf.score >= 0      ? "landmarks are missing; the SAF score uses the configurations that remain"
+          : !s.saf.skipped.empty() ? "landmarks are missing; every SAF configuration needs one of them, so there is no SAF score"
+                                   : "landmarks are missing");
   out.add("truncated", s.truncated ? 1 : 0, none, "", "the mandible must lie inside the scan", false,
           "the mandible is cut by the scan's edge: scores are not comparable");
   bool fail = false, warn = false;

@@ -464,10 +464,11 @@ void place_gonia(const Frame& f, const GonialSide (&gonial)[2], double apex_radi
 // female), so their lowest and most anterior points are ill-conditioned
 // laterally: openkbp-train pt_92 resampled (turned 10 degrees and back)
 // moved "the lowest point" 9.8 mm across the chin. The midline is where the
-// arch's outer walls are: the lateral middle of the surface in slabs kArchSlabMm thick at kArchDepthsMm behind
-// the chin's front, at the chin's level (up to kChinLevelMm above the
-// symphysis's lowest point, below the tooth roots). It follows a deviated
-// chin (the walls move with it) and mirrors with the scan. Returns U; 0 (the
+// arch's outer walls are: the lateral middle of the surface in slabs
+// kArchSlabMm thick at kArchDepthsMm behind the chin's front, at the chin's
+// level (up to kChinLevelMm above the symphysis's lowest point, below the
+// tooth roots). It follows a deviated chin (the walls move with it) and
+// mirrors with the scan. Returns U; 0 (the
 // symmetry plane) when no slab has surface on both sides of it.
 constexpr double kArchDepthsMm[3] = {6.0, 9.0, 12.0};
 constexpr double kArchSlabMm = 3.0;

@@ -109,7 +109,8 @@ TEST(Qc, MissingLandmarksSayWhetherASafScoreRemains) {
   s.saf.score = 0.12;  // Co-Pog|Go-Me remains
   EXPECT_NE(check(evaluate_qc(s), "landmarks_missing")->message.find("uses the configurations that remain"), std::string::npos);
   erase(s, "Co_L");
-  s.saf.score = -1;  // not computed
+  s.saf.score = -1;  // every configuration skipped
+  s.saf.skipped = {"Co-Me|Cr-Go", "Co-Go|Cr-Pog", "Go-Me|Co-Cr", "Co-Pog|Go-Me"};
   const Qc q = evaluate_qc(s);
   ASSERT_FALSE(q.failed().empty());
   EXPECT_NE(check(q, "landmarks_missing")->message.find("no SAF score"), std::string::npos);
