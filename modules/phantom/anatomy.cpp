@@ -498,8 +498,11 @@ struct HullEdge {
 // degrees the lower posterior border faced 40 degrees below posterior, was in
 // both cones, and paired with the upper posterior border put gonion half-way
 // up the ramus); of the distinct pairs, the one with the largest total
-// length. Returns the bisector of the pair's outward normals.
-SagittalDir tangents_bisector(const std::vector<Vec3>& outline, const std::vector<std::size_t>& h) {
+// length. Returns the pair's outward normals.
+struct GonialTangents {
+  SagittalDir post, inf;
+};
+GonialTangents gonial_tangents(const std::vector<Vec3>& outline, const std::vector<std::size_t>& h) {
   std::vector<HullEdge> post, inf;
   const double cone = std::cos(50.0 * kPi / 180.0);
   for (std::size_t i = 0; i < h.size(); ++i) {
@@ -511,67 +514,57 @@ SagittalDir tangents_bisector(const std::vector<Vec3>& outline, const std::vecto
     if (-e.nz > cone && -e.nz > e.ny) inf.push_back(e);
   }
   double best_len = -1;
-  SagittalDir n;
+  GonialTangents t;
   for (const HullEdge& pe : post)
     for (const HullEdge& ie : inf)
       if (-pe.nz < -ie.nz && pe.len + ie.len > best_len) {
         best_len = pe.len + ie.len;
-        const double by = pe.ny + ie.ny, bz = pe.nz + ie.nz, bl = std::hypot(by, bz);
-        n.ny = by / bl, n.nz = bz / bl;
+        t.post = {pe.ny, pe.nz};
+        t.inf = {ie.ny, ie.nz};
       }
-  return n;
+  return t;
 }
 
-// Go, the extreme point: the bone's extreme point along the bisector near
-// the outline's corner c (the surface is rounded there, not a uniform offset
-// of the outline), sampled at 0.25 mm in (y, z) over a 24 mm window, 0.5 mm
-// across; then, across the plate, the middle of the bone at that (y, z), so
-// that left and right are mirror images whatever the sampling's direction.
-template <class F>
-Vec3 extreme_bone_point(const F& f, const Vec3& c, const SagittalDir& n) {
-  Vec3 best = c;
-  double best_score = -kFar;
-  for (double y = c[1] - 12.0; y <= c[1] + 12.0; y += 0.25)
-    for (double z = c[2] - 12.0; z <= c[2] + 12.0; z += 0.25) {
-      const double score = y * n.ny + z * n.nz;
-      if (score <= best_score) continue;
-      for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.5)
-        if (f(Vec3{x, y, z}) < 0) {
-          best = {x, y, z};
-          best_score = score;
-          break;
-        }
-    }
-  double x0 = kFar, x1 = -kFar;
-  for (double x = c[0] - 15.0; x <= c[0] + 15.0; x += 0.1)
-    if (f(Vec3{x, best[1], best[2]}) < 0) x0 = std::min(x0, x), x1 = std::max(x1, x);
-  best[0] = 0.5 * (x0 + x1);
-  return best;
-}
-
-// Go (METHOD.md §2, as docs/landmarks.md measures it): in the sagittal
-// projection (y, z) of this side's outline, the posterior ramus tangent and
-// the inferior border tangent are supporting lines of the outline
-// (tangents_bisector); gonion is where the bisector of their outward normals
-// meets the surface: the bone's extreme point along it. The tangents come
-// from the design outline (the ramus plate's polygon and the body's lower
-// border, in 3D); the extreme point from the bone itself, around the
-// outline's extreme point. Until 2026-12-02 the tangents were drawn in the
-// ramus plane through the outline's corner and two border points, and gonion
-// was that corner crossed along the bisector: 2.8 mm from where the
-// definition puts it on the rounded angle.
+// Go (METHOD.md §2, as docs/landmarks.md measures it: the constructed
+// gonion): in the sagittal projection (y, z) of this side, the posterior
+// ramus tangent and the inferior border tangent are the outline's support
+// lines with the normals of gonial_tangents; they meet at T, and gonion is
+// the first point of the bone's projection on their angle's bisector,
+// followed from T into the bone (0.05 mm steps; bone at any x within 15 mm
+// of the outline's corner), then put on the surface along the bisector at
+// the middle of the bone across the plate. The tangents come from the
+// design outline, the crossing from the bone itself: offsetting both
+// tangents by the same margin (the bone's rounded rim around the outline)
+// moves T along the same bisector, so the crossing does not depend on it.
 template <class F>
 Vec3 gonion(const F& f, const std::vector<Vec3>& outline) {
   std::vector<std::array<double, 2>> yz(outline.size());
   for (std::size_t i = 0; i < outline.size(); ++i) yz[i] = {outline[i][1], outline[i][2]};
   const std::vector<std::size_t> h = convex_hull_2d(yz);  // counter-clockwise in (y, z)
-  const SagittalDir n = tangents_bisector(outline, h);
-  std::size_t go = h.front();
+  const GonialTangents g = gonial_tangents(outline, h);
+  double cp = -kFar, ci = -kFar;
+  for (std::size_t i : h) {
+    cp = std::max(cp, g.post.ny * yz[i][0] + g.post.nz * yz[i][1]);
+    ci = std::max(ci, g.inf.ny * yz[i][0] + g.inf.nz * yz[i][1]);
+  }
+  const double det = g.post.ny * g.inf.nz - g.post.nz * g.inf.ny;
+  const double ty = (cp * g.inf.nz - g.post.nz * ci) / det, tz = (g.post.ny * ci - cp * g.inf.ny) / det;
+  const double bl = std::hypot(g.post.ny + g.inf.ny, g.post.nz + g.inf.nz);
+  const double by = (g.post.ny + g.inf.ny) / bl, bz = (g.post.nz + g.inf.nz) / bl;  // outward
+  std::size_t corner = h.front();
   for (std::size_t i : h)
-    if (outline[i][1] * n.ny + outline[i][2] * n.nz > outline[go][1] * n.ny + outline[go][2] * n.nz) go = i;
-  const Vec3 best = extreme_bone_point(f, outline[go], n);
-  const Vec3 n3{0.0, n.ny, n.nz};
-  return crossing(f, best + 2.0 * n3, best - 2.0 * n3);
+    if (yz[i][0] * by + yz[i][1] * bz > yz[corner][0] * by + yz[corner][1] * bz) corner = i;
+  const double xc = outline[corner][0];
+  for (double s = -10.0; s <= 40.0; s += 0.05) {
+    const double y = ty - s * by, z = tz - s * bz;
+    double x0 = kFar, x1 = -kFar;
+    for (double x = xc - 15.0; x <= xc + 15.0; x += 0.1)
+      if (f(Vec3{x, y, z}) < 0) x0 = std::min(x0, x), x1 = std::max(x1, x);
+    if (x0 > x1) continue;
+    const Vec3 hit{0.5 * (x0 + x1), y, z}, n3{0.0, by, bz};
+    return crossing(f, hit + 2.0 * n3, hit - 2.0 * n3);
+  }
+  return outline[corner];
 }
 
 // Me: the lowest point of the symphysis on its mid-sagittal line x.

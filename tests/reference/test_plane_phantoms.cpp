@@ -89,11 +89,12 @@ TEST_P(SymmetricPhantom, PlaneAndMirrorDistanceAreExact) {
   EXPECT_LE(o.mirror.overall.mean_abs, 0.3);
   ASSERT_TRUE(o.bilateral.count("ramus_height_mm"));
   // A symmetric mandible's ramus difference is the two sides' landmark noise
-  // at 1 mm voxels: on "mixed" (10/-8/6 deg) gonion is 0.58 mm from the truth
-  // on the left and 0.25 mm on the right in either frame (staircase of the
-  // rounded angle), which alone gives ~0.5 mm; with the head frame Co moved
-  // by 0.1 mm and the difference is 0.53 mm (0.48 with the scan's superior,
-  // when Cr was 0.6-0.7 mm off instead of 0.1-0.3). Bound: 0.6 voxel.
+  // at 1 mm voxels. Gonion follows each side's own tangents, whose
+  // directions the staircase turns by ~0.5 degrees about the condyle: T and
+  // the bisector's crossing move by ~0.5 mm (docs/landmarks.md, "Why the
+  // bisector is followed"). Measured: 0.07-0.30 mm on these five poses
+  // (with each side's longest hull edge and the crossing's nearest vertex,
+  // 1.19 mm on "mixed"). Bound: 0.6 voxel.
   EXPECT_LT(std::abs(o.bilateral.at("ramus_height_mm").diff), 0.6);
 }
 
