@@ -749,17 +749,20 @@ Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>&
   // the two is the condyle. (Only the second highest was tried before: where
   // the coronoid is thin at 4 mm voxels a molar cusp ranked second and the
   // pair failed.)
-  int co = top[0], cr = -1;
+  // The pair must still be distinct at its apexes: an extremity on the
+  // front of a condylar neck climbs to the condyle's top (openkbp-train
+  // pt_30, right: the "coronoid tip" 9 mm from condylion, on its head).
+  const int a0 = apex(top[0]);
+  int co = a0, cr = -1;
   for (std::size_t k = 1; k < top.size(); ++k) {
     const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[k]);
-    if (std::abs(A[p] - A[q]) > kProcessSeparationMm && std::abs(H[p] - H[q]) < kProcessHeightMm) {
-      co = A[p] > A[q] ? top[0] : top[k];
-      cr = A[p] > A[q] ? top[k] : top[0];
-      break;
-    }
+    if (std::abs(A[p] - A[q]) <= kProcessSeparationMm || std::abs(H[p] - H[q]) >= kProcessHeightMm) continue;
+    const int ap = a0, aq = apex(top[k]);
+    if (std::abs(A[static_cast<std::size_t>(ap)] - A[static_cast<std::size_t>(aq)]) <= kProcessSeparationMm) continue;
+    co = A[p] > A[q] ? ap : aq;
+    cr = A[p] > A[q] ? aq : ap;
+    break;
   }
-  co = apex(co);
-  if (cr >= 0) cr = apex(cr);
   const std::size_t c = static_cast<std::size_t>(co);
   // The condyle caps the posterior border: a process more than
   // kCondyleMaxDepthMm in front of it, over the front half of the ramus
