@@ -459,7 +459,7 @@ double position_over_section(const Frame& f, double s, std::size_t v) {
 // mesh's edges cross the plane through the bisector along U (interpolated,
 // so the staircase of the vertices does not move it), the crossings within
 // kPlateauTolMm of the first; of those, the middle one across the border
-// (in U). NaN when none.
+// (the median in U). NaN when none.
 Vec3 bisector_crossing(const Frame& f, const std::vector<std::array<int, 3>>& faces, const GonialSide& gs) {
   const P2 &np = gs.n_post, &ni = gs.n_inf;
   const double det = np.a * ni.h - np.h * ni.a, bl = std::hypot(np.a + ni.a, np.h + ni.h);
@@ -488,9 +488,12 @@ Vec3 bisector_crossing(const Frame& f, const std::vector<std::array<int, 3>>& fa
   std::vector<std::pair<double, Vec3>> rim;  // (U, point) of the first crossings
   for (const auto& h : hits)
     if (h.first <= first + kPlateauTolMm) rim.push_back({dot(h.second - f.origin, f.e_ml), h.second});
-  std::nth_element(rim.begin(), rim.begin() + static_cast<std::ptrdiff_t>(rim.size() / 2), rim.end(),
-                   [](const auto& x, const auto& y) { return x.first < y.first; });
-  return rim[rim.size() / 2].second;
+  // The median in U; of an even count the mean of the two middle ones (two
+  // neighbouring crossings), so that a mirrored surface gives the mirrored
+  // point.
+  std::sort(rim.begin(), rim.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  const std::size_t m = rim.size() / 2;
+  return rim.size() % 2 ? rim[m].second : 0.5 * (rim[m - 1].second + rim[m].second);
 }
 
 void place_gonia(const Frame& f, const std::vector<std::array<int, 3>>& faces, const GonialSide (&gonial)[2], LandmarkSet& out) {
