@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -468,6 +470,8 @@ Vec3 bisector_crossing(const Frame& f, const std::vector<std::array<int, 3>>& fa
   for (const P2& q : gs.pts) cp = std::max(cp, np.a * q.a + np.h * q.h), ci = std::max(ci, ni.a * q.a + ni.h * q.h);
   const P2 T{(cp * ni.h - np.h * ci) / det, (np.a * ci - cp * ni.a) / det};
   const P2 b{(np.a + ni.a) / bl, (np.h + ni.h) / bl};  // outward
+  if (std::getenv("MANDISYM_DEBUG_LANDMARKS"))  // the tangents (docs/landmarks.md)
+    std::fprintf(stderr, "gonion: n_post %.3f %.3f n_inf %.3f %.3f T %.2f %.2f\n", np.a, np.h, ni.a, ni.h, T.a, T.h);
   std::vector<char> on(f.V.size(), 0);
   for (std::size_t v : gs.idx) on[v] = 1;
   auto across = [&](int v) { return (f.A[v] - T.a) * b.h - (f.H[v] - T.h) * b.a; };
