@@ -764,10 +764,10 @@ Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>&
   for (std::size_t k = 1; k < top.size(); ++k) {
     const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[k]);
     if (std::abs(A[p] - A[q]) <= kProcessSeparationMm || std::abs(H[p] - H[q]) >= kProcessHeightMm) continue;
-    const int ap = a0, aq = apex(top[k]);
-    if (std::abs(A[static_cast<std::size_t>(ap)] - A[static_cast<std::size_t>(aq)]) <= kProcessSeparationMm) continue;
-    co = A[p] > A[q] ? ap : aq;
-    cr = A[p] > A[q] ? aq : ap;
+    const int aq = apex(top[k]);
+    if (std::abs(A[static_cast<std::size_t>(a0)] - A[static_cast<std::size_t>(aq)]) <= kProcessSeparationMm) continue;
+    co = A[p] > A[q] ? a0 : aq;
+    cr = A[p] > A[q] ? aq : a0;
     break;
   }
   const std::size_t c = static_cast<std::size_t>(co);

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <utility>
 
 #include "core/array_order.h"
 #include "core/json_text.h"
@@ -589,6 +590,27 @@ ms::Volume turned_about_k(const ms::Volume& v, double deg) {
   return out;
 }
 
+// A landmark of a results.json, LPS mm.
+ms::Vec3 landmark(const Value& r, const std::string& name) {
+  const Value& p = r.at("landmarks").at(name);
+  return ms::Vec3{p[0].get<double>(), p[1].get<double>(), p[2].get<double>()};
+}
+
+// Runs the openkbp-train scan ct (HU + 1000) and its copy, written to dir
+// as NIfTI; returns both runs' results (null values when a run failed).
+std::pair<Value, Value> run_scan_and_copy(const fs::path& ct, const ms::Volume& copy, const fs::path& dir) {
+  fs::create_directories(dir);
+  ms::io::write_volume(copy, (dir / "copy.nii.gz").string());
+  std::string err;
+  const std::string opts = " --hu-offset -1000 -q --no-figures -o ";
+  if (run("run " + ct.string() + opts + (dir / "a").string(), &err) != 0 ||
+      run("run " + (dir / "copy.nii.gz").string() + opts + (dir / "b").string(), &err) != 0) {
+    ADD_FAILURE() << err;
+    return {};
+  }
+  return {load(dir / "a" / "results.json"), load(dir / "b" / "results.json")};
+}
+
 // Menton and pogonion are midline points, and on a real symphysis whose
 // lower border and labial profile are flat across the chin the lowest and
 // most anterior points are ill-conditioned sideways (docs/landmarks.md,
@@ -600,14 +622,9 @@ TEST(EndToEnd, ResampledRealScanKeepsMentonOnTheChinsMidline) {
   const fs::path ct = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / "pt_92" / "ct.nii.gz";
   if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
   const fs::path dir = temp_dir("pt92_resampled");
-  fs::create_directories(dir);
   const ms::Volume v = ms::io::read_scan(ct.string()).volume;
-  ms::io::write_volume(turned_about_k(turned_about_k(v, 10.0), -10.0), (dir / "resampled.nii.gz").string());
-  std::string err;
-  const std::string opts = " --hu-offset -1000 -q --no-figures -o ";
-  ASSERT_EQ(run("run " + ct.string() + opts + (dir / "a").string(), &err), 0) << err;
-  ASSERT_EQ(run("run " + (dir / "resampled.nii.gz").string() + opts + (dir / "b").string(), &err), 0) << err;
-  const Value a = load(dir / "a" / "results.json"), b = load(dir / "b" / "results.json");
+  const auto [a, b] = run_scan_and_copy(ct, turned_about_k(turned_about_k(v, 10.0), -10.0), dir);
+  ASSERT_TRUE(a.is_object() && b.is_object());
   // Menton as a whole; pogonion across the chin (along the symmetry plane's
   // normal): up and down the chin it still follows the chin window's top
   // (B point found or not, docs/landmarks.md), which a resampling of a
@@ -643,7 +660,6 @@ TEST(EndToEnd, RealScanStoredTurnedKeepsItsGonia) {
   const fs::path ct = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / "pt_101" / "ct.nii.gz";
   if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
   const fs::path dir = temp_dir("pt101_oblique");
-  fs::create_directories(dir);
   const ms::Volume v = ms::io::read_scan(ct.string()).volume;
   const double t = 10.0 * M_PI / 180.0, ct_ = std::cos(t), st = std::sin(t);
   const ms::Vec3 centre = v.geom.index_to_lps(0.5 * (v.geom.size[0] - 1.0), 0.5 * (v.geom.size[1] - 1.0), 0.5 * (v.geom.size[2] - 1.0));
@@ -659,19 +675,12 @@ TEST(EndToEnd, RealScanStoredTurnedKeepsItsGonia) {
     w.geom.direction[3 + a] = st * x + ct_ * y;
   }
   w.geom.origin = turn(v.geom.origin, 1.0);
-  ms::io::write_volume(w, (dir / "oblique.nii.gz").string());
-  std::string err;
-  const std::string opts = " --hu-offset -1000 -q --no-figures -o ";
-  ASSERT_EQ(run("run " + ct.string() + opts + (dir / "a").string(), &err), 0) << err;
-  ASSERT_EQ(run("run " + (dir / "oblique.nii.gz").string() + opts + (dir / "b").string(), &err), 0) << err;
-  const Value a = load(dir / "a" / "results.json"), b = load(dir / "b" / "results.json");
+  const auto [a, b] = run_scan_and_copy(ct, w, dir);
+  ASSERT_TRUE(a.is_object() && b.is_object());
   for (const char* l : {"Go_L", "Go_R"}) {
     ASSERT_FALSE(a.at("landmarks").at(l).is_null()) << l;
     ASSERT_FALSE(b.at("landmarks").at(l).is_null()) << l;
-    ms::Vec3 p, q;
-    for (std::size_t k = 0; k < 3; ++k) p[k] = a.at("landmarks").at(l)[k].get<double>(), q[k] = b.at("landmarks").at(l)[k].get<double>();
-    const ms::Vec3 back = turn(q, -1.0);
-    const double d = std::sqrt(std::pow(back[0] - p[0], 2) + std::pow(back[1] - p[1], 2) + std::pow(back[2] - p[2], 2));
+    const double d = ms::distance(turn(landmark(b, l), -1.0), landmark(a, l));
     std::printf("%s moved %.2f mm\n", l, d);
     EXPECT_LE(d, 2.0) << l;
   }
@@ -859,19 +868,15 @@ Value expect_two_processes_per_side(const std::string& pid) {
     return Value();
   }
   const Value r = load(out / "results.json"), c = load(contour / "results.json");
-  auto at = [](const Value& v, const std::string& n) {
-    return ms::Vec3{v.at("landmarks").at(n)[0].get<double>(), v.at("landmarks").at(n)[1].get<double>(),
-                    v.at("landmarks").at(n)[2].get<double>()};
-  };
   for (const char* side : {"_L", "_R"}) {
     const std::string co = std::string("Co") + side, cr = std::string("Cr") + side;
     if (r.at("landmarks").at(co).is_null() || r.at("landmarks").at(cr).is_null() || c.at("landmarks").at(cr).is_null()) {
       ADD_FAILURE() << pid << ": " << co << " or " << cr << " missing";
       continue;
     }
-    const ms::Vec3 pco = at(r, co), pcr = at(r, cr), ccr = at(c, cr);
-    const double behind = pco[1] - pcr[1];  // LPS y: posterior (these heads are upright)
-    const double d = std::sqrt(std::pow(pcr[0] - ccr[0], 2) + std::pow(pcr[1] - ccr[1], 2) + std::pow(pcr[2] - ccr[2], 2));
+    const ms::Vec3 pcr = landmark(r, cr);
+    const double behind = landmark(r, co)[1] - pcr[1];  // LPS y: posterior (these heads are upright)
+    const double d = ms::distance(pcr, landmark(c, cr));
     std::printf("%s: %s %.1f mm behind %s; %s %.1f mm from the contour's\n", pid.c_str(), co.c_str(), behind, cr.c_str(), cr.c_str(), d);
     EXPECT_GE(behind, 20.0) << pid << " " << co;
     EXPECT_LE(d, 5.0) << pid << " " << cr;
