@@ -329,6 +329,11 @@ constexpr double kPlateauTolMm = 0.3;
 // (the posterior ramus border's convexity, the antegonial notch), and the
 // gonial angle itself turns 110-140 degrees.
 constexpr double kStraightBorderDeg = 10.0;
+// Hull edges facing within this of 45 degrees below posterior are candidates
+// for both gonial tangents (degrees); below 42 degrees an edge is a ramus
+// border (the 40 degree lower posterior border of a ramus tilted back 18
+// degrees, above).
+constexpr double kClassOverlapDeg = 3.0;
 
 // The two gonial tangents of one side (their outward normals in (A, H)).
 struct GonialSide {
@@ -338,30 +343,80 @@ struct GonialSide {
   bool ok = false;
 };
 
-// Gonion, first pass (detect() step 3): the posterior ramus tangent and the
-// inferior border tangent of side s (+1 left, -1 right), from the convex hull
-// of the side's sagittal projection.
-GonialSide gonial_tangents(const Frame& f, double s) {
-  const auto& V = f.V;
+// The gonial tangents of a rounded angle as a cephalometrist draws them
+// (docs/landmarks.md step 4; Jacobson 1995), where the
+// hull has no long posterior and inferior stretch: the ramus line is laid on
+// the posterior border of the ramus, touching it below the condyle and at
+// the angle; the mandibular line is laid on the lower border, touching it
+// near the chin and at the angle. On the convex hull of the sagittal
+// projection each is the hull edge that bridges the middle of its border:
+//   ramus line: the posterior-facing edge of the side's hull (|U| beyond
+//   kSideFraction) crossing the height kRamusMiddle of the side's height
+//   below its top (condylion, or the side's highest point without one);
+//   mandibular line: the lower edge of the half mandible's hull (s U > 0,
+//   chin included) crossing kBodyMiddle of the way from menton to the
+//   half's most posterior point.
+// Adult sides are 75-100 mm high and halves 85-100 mm long, so these are
+// about 27 mm below condylion (between the condylar neck and the angle) and
+// 30 mm behind menton (the molars), as fractions scaling with a child's
+// mandible. Which edge is used moves only when a hull vertex crosses that
+// height or depth: a straight or concave border is one edge from end to
+// end there, and a convex one has short edges of nearly the same
+// direction. (The best two-chord fit of the border used before,
+// border_chords, has near-equal minima on such borders: openkbp-train
+// pt_141 mirrored moved Go_R 23.7 mm.)
+constexpr double kRamusMiddle = 0.3;
+constexpr double kBodyMiddle = 0.35;
+
+// The hull edge of `hl` (counter-clockwise) crossing the line x = at, where
+// x is the edge point's H (along_h) or A, whose outward normal faces `facing`
+// (its component along that side's axis is positive); false when none.
+bool crossing_edge(const std::vector<P2>& hl, bool along_h, double at, const P2& facing, P2* normal) {
+  for (std::size_t i = 0; i < hl.size(); ++i) {
+    const P2 &p = hl[i], &q = hl[(i + 1) % hl.size()];
+    const double xp = along_h ? p.h : p.a, xq = along_h ? q.h : q.a;
+    if ((xp - at) * (xq - at) > 0 || xp == xq) continue;
+    const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
+    const P2 out{dh / len, -da / len};
+    if (out.a * facing.a + out.h * facing.h <= 0) continue;
+    *normal = out;
+    return true;
+  }
+  return false;
+}
+
+BorderPair spanning_tangents(const Frame& f, double s, const std::vector<P2>& side_hull, double top_h, double me_a) {
   const auto &U = f.U, &A = f.A, &H = f.H;
-  auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
-  // Gonion, first pass: the posterior ramus tangent and the inferior border
-  // tangent of this side (convex-hull edges of its sagittal projection).
-  GonialSide gs;
-  for (std::size_t v = 0; v < V.size(); ++v)
-    if (on_side(v)) {
-      gs.pts.push_back({A[v], H[v]});
-      gs.idx.push_back(v);
-    }
-  const std::vector<P2> hl = hull(gs.pts);
-  // Hull edges facing posterior / inferior (within 50 degrees); the two
-  // tangents are the pair of distinct edges, one of each, with the largest
-  // total length. (Taking the longest of each separately let one edge at
-  // ~45 degrees be both when the head was pitched 20 degrees: a concave
-  // posterior border's single long edge faces 24 degrees below posterior.)
+  BorderPair out;
+  if (!std::isfinite(me_a) || side_hull.size() < 3) return out;
+  double h_lo = kInf, h_hi = -kInf, a_back = -kInf;
+  std::vector<P2> half;
+  for (std::size_t v = 0; v < U.size(); ++v) {
+    if (s * U[v] > kSideFraction * f.umax) h_lo = std::min(h_lo, H[v]), h_hi = std::max(h_hi, H[v]);
+    if (s * U[v] > 0) a_back = std::max(a_back, A[v]), half.push_back({A[v], H[v]});
+  }
+  const double top = std::isfinite(top_h) ? top_h : h_hi;
+  if (!(top > h_lo) || !(a_back > me_a)) return out;
+  const bool post = crossing_edge(side_hull, true, top - kRamusMiddle * (top - h_lo), P2{1, 0}, &out.n_post);
+  const bool inf = crossing_edge(hull(half), false, me_a + kBodyMiddle * (a_back - me_a), P2{0, -1}, &out.n_inf);
+  // A gonial angle: the ramus line faces more posteriorly than the
+  // mandibular line, and they are not near parallel.
+  out.ok = post && inf && -out.n_post.h < -out.n_inf.h && out.n_post.a * out.n_inf.a + out.n_post.h * out.n_inf.h < std::cos(20 * M_PI / 180);
+  return out;
+}
+
+// The two gonial tangents from the convex hull `hl` of a side's sagittal
+// projection (gonial_tangents): outward normals and lengths of its longest
+// posterior- and inferior-facing straight stretches.
+struct StretchPair {
+  P2 n_post{0, 0}, n_inf{0, 0};
+  double len_post = 0, len_inf = 0;
+};
+StretchPair longest_stretches(const std::vector<P2>& hl, double h_mid) {
   struct Edge {
     double len;
     P2 out;
+    double top;  // the higher end's H
   };
   std::vector<Edge> post, inf;
   const double cone = std::cos(50 * M_PI / 180);
@@ -370,47 +425,99 @@ GonialSide gonial_tangents(const Frame& f, double s) {
     const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
     if (len < 1e-9) continue;
     const P2 out{dh / len, -da / len};  // outward normal of a counter-clockwise hull
-    // Each edge faces one way, the nearer of posterior and inferior: a
-    // ramus tilted back 18 degrees (gonial angle opened 8) has a lower
-    // posterior border facing 40 degrees below posterior, and in both cones
-    // it paired with the upper posterior border, whose bisector put gonion
-    // half-way up the ramus.
-    if (out.a > cone && out.a >= -out.h) post.push_back({len, out});
-    if (-out.h > cone && -out.h > out.a) inf.push_back({len, out});
+    // Hull edges facing posterior / inferior (within 50 degrees), each the
+    // nearer of the two: a ramus tilted back 18 degrees (gonial angle
+    // opened 8) has a lower posterior border facing 40 degrees below
+    // posterior, and in both cones it paired with the upper posterior
+    // border, whose bisector put gonion half-way up the ramus. Within
+    // kClassOverlapDeg of 45 degrees an edge may be either, so that a facet
+    // there (the angle's own) does not change its class, and the pair, with
+    // a fraction of a degree of the frame (openkbp-train pt_172 mirrored:
+    // Go_R 5.1 mm).
+    const double below = std::atan2(-out.h, out.a) * 180 / M_PI;  // degrees below posterior
+    if (out.a > cone && below <= 45 + kClassOverlapDeg) post.push_back({len, out, std::max(p.h, q.h)});
+    if (-out.h > cone && below >= 45 - kClassOverlapDeg) inf.push_back({len, out, std::max(p.h, q.h)});
   }
-  double best_post = 0, best_inf = 0;
-  for (const Edge& p : post)
-    for (const Edge& q : inf) {
-      // Distinct edges, the posterior one above (less inferior than) the inferior one.
-      if (-p.out.h >= -q.out.h || p.len + q.len <= best_post + best_inf) continue;
-      best_post = p.len, gs.n_post = p.out;
-      best_inf = q.len, gs.n_inf = q.out;
-    }
   // A border that bends less than kStraightBorderDeg is one straight
   // stretch: its tangent is the chord of its hull edges within that of the
-  // longest (length-weighted mean normal; on a convex hull they are
-  // contiguous), not whichever of two nearly equal edges is a little longer.
-  auto chord = [&](const std::vector<Edge>& edges, const P2& n) {
+  // edge (length-weighted mean normal; on a convex hull they are
+  // contiguous), not whichever of two nearly equal edges is a little longer,
+  // and its length is the stretch's (the sum of those edges' lengths): a
+  // border bending 8 degrees is one hull edge or two, as the staircase of
+  // the surface happens to fall (openkbp-train pt_172 and its mirror image).
+  auto stretch = [&](const std::vector<Edge>& edges, const P2& n, P2* chord) {
     P2 m{0, 0};
+    double length = 0;
     for (const Edge& e : edges)
-      if (e.out.a * n.a + e.out.h * n.h >= std::cos(kStraightBorderDeg * M_PI / 180)) m.a += e.len * e.out.a, m.h += e.len * e.out.h;
+      if (e.out.a * n.a + e.out.h * n.h >= std::cos(kStraightBorderDeg * M_PI / 180)) m.a += e.len * e.out.a, m.h += e.len * e.out.h, length += e.len;
     const double l = std::hypot(m.a, m.h);
-    return l > 1e-9 ? P2{m.a / l, m.h / l} : n;
+    *chord = l > 1e-9 ? P2{m.a / l, m.h / l} : n;
+    return length;
   };
-  if (best_post > 0) gs.n_post = chord(post, gs.n_post), gs.n_inf = chord(inf, gs.n_inf);
+  // The pair of distinct stretches, one of each, with the largest total
+  // length (taking the longest of each separately let one edge at ~45
+  // degrees be both when the head was pitched 20 degrees: a concave
+  // posterior border's single long edge faces 24 degrees below posterior).
+  // The ramus line touches the posterior border below the condyle: its
+  // stretch reaches the upper half of the side (h_mid), which a facet of
+  // the angle does not (openkbp-train pt_141: a 35 mm facet at 34 degrees,
+  // as long as the ramus border).
+  // (The pair is chosen by its edges' lengths, the chord taken about them:
+  // chosen by the stretches' lengths, each about a different edge of a
+  // gently bulging border, the phantoms' ramus series read 2.57 / 4.69 mm
+  // for 2 / 4 mm.)
+  const Edge* bp = nullptr;
+  const Edge* bq = nullptr;
+  for (const Edge& p : post) {
+    if (p.top < h_mid) continue;
+    for (const Edge& q : inf) {
+      if (-p.out.h >= -q.out.h) continue;  // the posterior one less inferior than the inferior one
+      if (!bp || p.len + q.len > bp->len + bq->len) bp = &p, bq = &q;
+    }
+  }
+  StretchPair best;
+  if (bp) best.len_post = stretch(post, bp->out, &best.n_post), best.len_inf = stretch(inf, bq->out, &best.n_inf);
+  return best;
+}
+
+// Gonion, first pass (detect() step 4): the posterior ramus tangent and the
+// inferior border tangent of side s (+1 left, -1 right), from the convex
+// hull of the side's sagittal projection: its longest posterior- and
+// inferior-facing straight stretches, or, where the borders are rounded,
+// the edges bridging their middles (spanning_tangents). top_h: condylion's
+// height (NaN when missing), me_a: menton's antero-posterior position.
+GonialSide gonial_tangents(const Frame& f, double s, double top_h, double me_a) {
+  const auto& V = f.V;
+  const auto &U = f.U, &A = f.A, &H = f.H;
+  auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
+  GonialSide gs;
+  for (std::size_t v = 0; v < V.size(); ++v)
+    if (on_side(v)) {
+      gs.pts.push_back({A[v], H[v]});
+      gs.idx.push_back(v);
+    }
+  const std::vector<P2> hl = hull(gs.pts);
+  double h_lo = kInf, h_hi = -kInf;
+  for (const P2& q : gs.pts) h_lo = std::min(h_lo, q.h), h_hi = std::max(h_hi, q.h);
+  const StretchPair sp = longest_stretches(hl, 0.5 * (h_lo + h_hi));
+  gs.n_post = sp.n_post, gs.n_inf = sp.n_inf;
   // Both tangents must be long enough to be borders, not facets: a fifth
   // of the side's height (15 mm on an adult's ~73 mm; a fixed 15 mm lost
   // both gonia of a child's mandible, scale 0.7: posterior tangent 14.4 mm
   // of a 51 mm side), and never under 5 mm (no side, a sliver of one).
-  double h_lo = kInf, h_hi = -kInf;
-  for (const P2& q : gs.pts) h_lo = std::min(h_lo, q.h), h_hi = std::max(h_hi, q.h);
   const double min_tangent = gs.pts.empty() ? kInf : std::max(5.0, 0.2 * (h_hi - h_lo));
-  gs.ok = best_post > min_tangent && best_inf > min_tangent;
+  gs.ok = sp.len_post > min_tangent && sp.len_inf > min_tangent;
   if (!gs.ok) {
     // A convex (rounded) ramus or lower border has no single long hull
-    // edge: the two borders are then the best two-chord fit of the hull's
-    // posterior-inferior arc (border_chords).
-    const BorderPair bp = border_chords(hl, cone, min_tangent);
+    // edge: the tangents are then the hull edges bridging the middle of
+    // each border (spanning_tangents); without menton, the best two-chord
+    // fit of the hull's posterior-inferior arc (border_chords).
+    BorderPair bp = spanning_tangents(f, s, hl, top_h, me_a);
+    const bool spanning = bp.ok;
+    if (!bp.ok) bp = border_chords(hl, std::cos(50 * M_PI / 180), min_tangent);
+    if (std::getenv("MANDISYM_DEBUG_LANDMARKS"))
+      std::fprintf(stderr, "gonion: side %+.0f: hull stretches %.1f / %.1f mm under %.1f: %s\n", s, sp.len_post, sp.len_inf, min_tangent,
+                   spanning ? "spanning edges" : bp.ok ? "two chords" : "none");
     if (bp.ok) gs.n_post = bp.n_post, gs.n_inf = bp.n_inf, gs.ok = true;
   }
   return gs;
@@ -828,21 +935,27 @@ Result detect(const Mesh& mesh, const Options& opt) {
   for (double s : {1.0, -1.0}) {
     const std::string suf = s > 0 ? "_L" : "_R";
     const Processes pr = condyle_and_coronoid(f, s, ext, highest_near);
-    // Gonion, first pass (gonial_tangents).
-    gonial[s > 0 ? 0 : 1] = gonial_tangents(f, s);
     if (pr.co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, pr.co, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (pr.cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, pr.cr, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (pr.why_co) r.why_missing["Co" + suf] = pr.why_co;
     if (pr.why_cr) r.why_missing["Cr" + suf] = pr.why_cr;
   }
 
-  // Gonion, second pass (place_gonia).
-  place_gonia(f, mesh.faces, gonial, r.landmarks);
-
-  // 4. Midline: menton and pogonion (place_midline).
+  // 5. Midline: menton and pogonion (place_midline); before gonion, whose
+  //    tangents on a rounded angle are placed from menton.
   place_midline(f, mesh.faces, opt.apex_radius_mm, r.landmarks);
 
-  // 5. Landmarks at the edge of a truncated scan are missing (drop_landmarks_at_edge).
+  // 4. Gonion: the tangents (gonial_tangents), then the constructed gonion
+  //    (place_gonia).
+  const Vec3* me = r.landmarks.find("Me");
+  for (double s : {1.0, -1.0}) {
+    const Vec3* co = r.landmarks.find(s > 0 ? "Co_L" : "Co_R");
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    gonial[s > 0 ? 0 : 1] = gonial_tangents(f, s, co ? dot(*co - f.origin, e_si) : nan, me ? dot(*me - f.origin, e_ap) : nan);
+  }
+  place_gonia(f, mesh.faces, gonial, r.landmarks);
+
+  // 6. Landmarks at the edge of a truncated scan are missing (drop_landmarks_at_edge).
   bool cut_side[2] = {false, false};
   if (opt.scan_grid)
     for (const Vec3& v : drop_landmarks_at_edge(mesh, *opt.scan_grid, opt.apex_radius_mm, r.landmarks, r.why_missing))
