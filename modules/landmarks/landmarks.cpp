@@ -334,6 +334,9 @@ constexpr double kStraightBorderDeg = 10.0;
 // border (the 40 degree lower posterior border of a ramus tilted back 18
 // degrees, above).
 constexpr double kClassOverlapDeg = 3.0;
+// Hull edges facing within this of posterior or of inferior are candidates
+// for the gonial tangents (degrees).
+constexpr double kBorderConeDeg = 50.0;
 
 // The two gonial tangents of one side (their outward normals in (A, H)).
 struct GonialSide {
@@ -385,16 +388,17 @@ bool crossing_edge(const std::vector<P2>& hl, bool along_h, double at, const P2&
   return false;
 }
 
+// The spanning tangents of side s (above) from its hull, condylion's height
+// top_h (NaN when missing) and menton's antero-posterior position me_a.
 BorderPair spanning_tangents(const Frame& f, double s, const std::vector<P2>& side_hull, double top_h, double me_a) {
   const auto &U = f.U, &A = f.A, &H = f.H;
   BorderPair out;
   if (!std::isfinite(me_a) || side_hull.size() < 3) return out;
-  double h_lo = kInf, h_hi = -kInf, a_back = -kInf;
+  double h_lo = kInf, h_hi = -kInf, a_back = -kInf;  // the side's height: its hull's
+  for (const P2& q : side_hull) h_lo = std::min(h_lo, q.h), h_hi = std::max(h_hi, q.h);
   std::vector<P2> half;
-  for (std::size_t v = 0; v < U.size(); ++v) {
-    if (s * U[v] > kSideFraction * f.umax) h_lo = std::min(h_lo, H[v]), h_hi = std::max(h_hi, H[v]);
+  for (std::size_t v = 0; v < U.size(); ++v)
     if (s * U[v] > 0) a_back = std::max(a_back, A[v]), half.push_back({A[v], H[v]});
-  }
   const double top = std::isfinite(top_h) ? top_h : h_hi;
   if (!(top > h_lo) || !(a_back > me_a)) return out;
   const bool post = crossing_edge(side_hull, true, top - kRamusMiddle * (top - h_lo), P2{1, 0}, &out.n_post);
@@ -419,7 +423,7 @@ StretchPair longest_stretches(const std::vector<P2>& hl, double h_mid) {
     double top;  // the higher end's H
   };
   std::vector<Edge> post, inf;
-  const double cone = std::cos(50 * M_PI / 180);
+  const double cone = std::cos(kBorderConeDeg * M_PI / 180);
   for (std::size_t i = 0; i < hl.size(); ++i) {
     const P2 &p = hl[i], &q = hl[(i + 1) % hl.size()];
     const double da = q.a - p.a, dh = q.h - p.h, len = std::hypot(da, dh);
@@ -514,7 +518,7 @@ GonialSide gonial_tangents(const Frame& f, double s, double top_h, double me_a) 
     // fit of the hull's posterior-inferior arc (border_chords).
     BorderPair bp = spanning_tangents(f, s, hl, top_h, me_a);
     const bool spanning = bp.ok;
-    if (!bp.ok) bp = border_chords(hl, std::cos(50 * M_PI / 180), min_tangent);
+    if (!bp.ok) bp = border_chords(hl, std::cos(kBorderConeDeg * M_PI / 180), min_tangent);
     if (std::getenv("MANDISYM_DEBUG_LANDMARKS"))
       std::fprintf(stderr, "gonion: side %+.0f: hull stretches %.1f / %.1f mm under %.1f: %s\n", s, sp.len_post, sp.len_inf, min_tangent,
                    spanning ? "spanning edges" : bp.ok ? "two chords" : "none");
