@@ -198,6 +198,19 @@ constexpr double kCoronoidFrontFraction = 0.5;
 // hyperplasia (Izumi et al. 2006, rare) or, far more often, a condylar
 // process cut short: its stump is not condylion.
 constexpr double kCoronoidAboveCondyleMaxMm = 15.0;
+// Condylion is the condyle's top, reached by climbing from the condylar
+// extremity: the highest point within process_radius_mm, again from there,
+// until no point within that radius is higher. The extremity (an AGD maximum)
+// can sit low on the broad condylar process: the Visible Human head pitched
+// 15 degrees put the right condyle's 18 mm down its neck, and one ball's
+// highest point was 11 mm below condylion. Bounded by the condylar process's
+// length above the sigmoid notch (~20 mm, Humphrey et al. 1999) in steps of
+// process_radius_mm, with a margin, and kept to the points nearer
+// (geodesically) the condylar extremity than any other extremity. The
+// coronoid tip does not climb: at ~4 mm voxels the notch can be so shallow
+// that the ramus's upper edge rises from the coronoid to the condylar neck
+// (openkbp-train pt_177: a climb took the coronoid 18 mm back, onto the neck).
+constexpr int kProcessClimbSteps = 4;
 
 // The posterior and inferior borders as two chords (the cephalometric
 // tangents), where no single hull edge is long enough (a rounded angle, a
@@ -849,7 +862,8 @@ struct Processes {
   const char* why_co = nullptr;
   const char* why_cr = nullptr;
 };
-Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>& ext, const std::function<int(int)>& apex) {
+Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>& ext, const std::function<int(int)>& apex,
+                               const std::function<int(int, int)>& climb) {
   const auto &U = f.U, &A = f.A, &H = f.H;
   Processes out;
   auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
@@ -871,7 +885,7 @@ Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>&
   // front of a condylar neck climbs to the condyle's top (openkbp-train
   // pt_30, right: the "coronoid tip" 9 mm from condylion, on its head).
   const int a0 = apex(top[0]);
-  int co = a0, cr = -1;
+  int co = a0, cr = -1, co_ext = top[0];
   for (std::size_t k = 1; k < top.size(); ++k) {
     const std::size_t p = static_cast<std::size_t>(top[0]), q = static_cast<std::size_t>(top[k]);
     if (std::abs(A[p] - A[q]) <= kProcessSeparationMm || std::abs(H[p] - H[q]) >= kProcessHeightMm) continue;
@@ -879,7 +893,16 @@ Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>&
     if (std::abs(A[static_cast<std::size_t>(a0)] - A[static_cast<std::size_t>(aq)]) <= kProcessSeparationMm) continue;
     co = A[p] > A[q] ? a0 : aq;
     cr = A[p] > A[q] ? aq : a0;
+    co_ext = A[p] > A[q] ? top[0] : top[k];
     break;
+  }
+  // Condylion is the condyle's top, climbed to from its extremity.
+  const int apex_co = co;
+  co = climb(co, co_ext);
+  if (std::getenv("MANDISYM_DEBUG_LANDMARKS")) {
+    const auto e = static_cast<std::size_t>(co_ext), a = static_cast<std::size_t>(apex_co), t = static_cast<std::size_t>(co);
+    std::fprintf(stderr, "condyle s=%+.0f: extremity A %.1f H %.1f, apex H %.1f, climbed to A %.1f H %.1f\n", s, A[e], H[e], H[a], A[t],
+                 H[t]);
   }
   const std::size_t c = static_cast<std::size_t>(co);
   // The condyle caps the posterior border: a process more than
@@ -929,8 +952,26 @@ Result detect(const Mesh& mesh, const Options& opt) {
   lap("  extremities");
   for (int e : ext) r.extremities.push_back(V[static_cast<std::size_t>(e)]);
   std::vector<double> scratch(n, kInf);
-  auto highest_near = [&](int seed) {
+  auto highest_within = [&](int seed) {
     return plateau(V, ball(g, seed, opt.process_radius_mm, scratch), [&](std::size_t v) { return H[v]; }, kPlateauTolMm);
+  };
+  // The climb to the process's top (kProcessClimbSteps) stays in the
+  // extremity's geodesic Voronoi cell among the extremities: from a coronoid
+  // whose extremity sits low at the notch it must not reach the condyle.
+  std::vector<int> cell(n, -1);
+  {
+    std::vector<double> d(n, kInf);
+    geometry::dijkstra(g, ext, kInf, d, &cell);
+  }
+  auto climb = [&](int v, int extremity) {
+    for (int step = 1; step < kProcessClimbSteps && v >= 0; ++step) {
+      const int w = highest_within(v);
+      if (w < 0 || cell[static_cast<std::size_t>(w)] != cell[static_cast<std::size_t>(extremity)] ||
+          H[static_cast<std::size_t>(w)] <= H[static_cast<std::size_t>(v)] + kPlateauTolMm)
+        break;
+      v = w;
+    }
+    return v;
   };
 
   // 3. Per side: the condylar and coronoid processes are the two highest
@@ -938,7 +979,7 @@ Result detect(const Mesh& mesh, const Options& opt) {
   GonialSide gonial[2];  // [0] left, [1] right
   for (double s : {1.0, -1.0}) {
     const std::string suf = s > 0 ? "_L" : "_R";
-    const Processes pr = condyle_and_coronoid(f, s, ext, highest_near);
+    const Processes pr = condyle_and_coronoid(f, s, ext, highest_within, climb);
     if (pr.co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, pr.co, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (pr.cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, pr.cr, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (pr.why_co) r.why_missing["Co" + suf] = pr.why_co;
