@@ -501,7 +501,7 @@ int run_command(const cli::Args& args, const std::string& command_line) {
     seg = segment_stage(scan.volume, rs, args, S);
     progress.stage("segment", 2);
     mask_outputs = std::async(threads::side_task_launch(), [&scan, &seg, &staging, figures_on] {
-      io::write_mask(seg.mask, staging.path("mandible_mask.nii.gz"));
+      io::write_mask(io::in_stored_order(seg.mask, scan.stored_order), staging.path("mandible_mask.nii.gz"));
       return figures_on ? reports::write_qc_slices(scan.volume, seg.mask, staging.path("qc")) : std::vector<std::string>{};
     });
     surf = surface_stage(scan.volume, seg, rs.surface, S);

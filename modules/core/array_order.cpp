@@ -21,6 +21,16 @@ AxisReorder canonical_reorder(const Geometry& g) {
   return r;
 }
 
+AxisReorder inverse(const AxisReorder& r) {
+  AxisReorder back;
+  for (int a = 0; a < 3; ++a) {
+    const auto b = static_cast<std::size_t>(r.from[static_cast<std::size_t>(a)]);
+    back.from[b] = a;
+    back.flip[b] = r.flip[static_cast<std::size_t>(a)];
+  }
+  return back;
+}
+
 Geometry reordered(const Geometry& g, const AxisReorder& r) {
   Geometry n = g;
   std::array<double, 3> first{};  // old index of the new grid's first voxel

@@ -31,6 +31,9 @@ AxisReorder canonical_reorder(const Geometry& g);
 // The grid after the reorder: same voxel positions, new index order.
 Geometry reordered(const Geometry& g, const AxisReorder& r);
 
+// The reorder that undoes r: reordered(reordered(g, r), inverse(r)) is g.
+AxisReorder inverse(const AxisReorder& r);
+
 // Values of grid g (x fastest) in the reordered grid's order.
 template <class T>
 std::vector<T> reordered_values(const std::vector<T>& v, const Geometry& g, const AxisReorder& r) {

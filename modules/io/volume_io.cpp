@@ -754,14 +754,24 @@ namespace {
 
 // Brings a grid and its values to the canonical array order (core/array_order.h).
 template <class T>
-void canonical_order(Geometry& g, std::vector<T>& values) {
+AxisReorder canonical_order(Geometry& g, std::vector<T>& values) {
   const AxisReorder order = canonical_reorder(g);
-  if (order.identity()) return;
+  if (order.identity()) return order;
   values = reordered_values(values, g, order);
   g = reordered(g, order);
+  return order;
 }
 
 }  // namespace
+
+Mask in_stored_order(const Mask& mask, const AxisReorder& stored_order) {
+  if (stored_order.identity()) return mask;
+  const AxisReorder back = inverse(stored_order);
+  Mask out;
+  out.data = reordered_values(mask.data, mask.geom, back);
+  out.geom = reordered(mask.geom, back);
+  return out;
+}
 
 LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
   register_factories();
@@ -786,7 +796,7 @@ LoadedScan read_scan(const std::string& path, const ReadOptions& options) {
                                             [](const std::string& w) { return w.find("not anatomical") != std::string::npos; }),
                              scan.info.warnings.end());
   }
-  canonical_order(scan.volume.geom, scan.volume.hu);
+  scan.stored_order = canonical_order(scan.volume.geom, scan.volume.hu);
   finish(scan, options.hu_offset);
   // Left and right are never guessed: a NIfTI without qform or sform code
   // needs --orientation (checked last, so that any other problem is named first).

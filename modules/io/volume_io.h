@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/array_order.h"
 #include "core/types.h"
 
 namespace ms::io {
@@ -36,9 +37,10 @@ struct ReadOptions {
 };
 
 struct LoadedScan {
-  Volume volume;
+  Volume volume;  // in the canonical array order (core/array_order.h)
   ScanInfo info;
   std::optional<DicomSource> dicom;  // the series read, when the input was DICOM
+  AxisReorder stored_order;          // what brought the stored array order to the canonical one
 };
 
 // Reads a DICOM folder (searched recursively) or a volume file (.nii, .nii.gz,
@@ -51,6 +53,9 @@ void write_volume(const Volume& volume, const std::string& path);
 
 // Writes a uint8 mask as NIfTI (.nii or .nii.gz) on its own grid.
 void write_mask(const Mask& mask, const std::string& path);
+// The mask (on a scan's canonical grid) in the array order the scan was
+// stored in (LoadedScan::stored_order): the same voxels, indexed as the input.
+Mask in_stored_order(const Mask& mask, const AxisReorder& stored_order);
 // Reads a mask (any ITK-readable format); voxels != 0 become 1.
 Mask read_mask(const std::string& path);
 // Reads an integer label map (any ITK-readable format, values rounded).

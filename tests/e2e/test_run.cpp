@@ -884,6 +884,25 @@ TEST(EndToEnd, CondyleTouchingTheRamusDiagonallyStaysOnTheSurface) {
   EXPECT_GT(r.at("mesh").at("voxels_joining_pieces").get<int>(), 0);
   for (const char* l : {"Co_L", "Co_R", "Cr_L", "Cr_R", "Go_L", "Go_R", "Me", "Pog"})
     EXPECT_FALSE(r.at("landmarks").at(l).is_null()) << l;
+  // mandible_mask.nii.gz is on the input CT grid in the input's array order
+  // (OUTPUTS.md): its voxels compare index by index with the clinical
+  // contour, stored on the CT's grid. Ingest works in the canonical order
+  // (core/array_order.h); written in that order (i and j reversed against
+  // this RAS file), the index-wise Dice was 0.00.
+  const std::string a = gunzip(out / "mandible_mask.nii.gz"), b = gunzip(ct.parent_path() / "mask.nii.gz");
+  ASSERT_GT(a.size(), 352u);
+  ASSERT_GT(b.size(), 352u);
+  EXPECT_EQ(a.substr(40, 16), b.substr(40, 16));  // dim[0..7]
+  const std::size_t oa = nifti_voxel_offset(a), ob = nifti_voxel_offset(b), n = a.size() - oa;
+  ASSERT_EQ(n, b.size() - ob);
+  std::size_t both = 0, na = 0, nb = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool x = a[oa + i] != 0, y = b[ob + i] != 0;
+    both += x && y, na += x, nb += y;
+  }
+  const double index_dice = 2.0 * static_cast<double>(both) / static_cast<double>(na + nb);
+  std::printf("index-wise Dice with the stored clinical contour %.3f\n", index_dice);
+  EXPECT_GE(index_dice, 0.7);
   fs::remove_all(out);
 }
 
