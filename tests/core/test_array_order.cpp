@@ -46,47 +46,48 @@ TEST(ArrayOrder, IdentityIsLeftAlone) {
   EXPECT_TRUE(ms::canonical_reorder(g).identity());
 }
 
-// Every signed permutation of the axes (48 storages, RAS and LAS among them).
-TEST(ArrayOrder, EverySignedPermutationKeepsValuesAtTheirPositionsAndEndsAtIdentity) {
+// Calls f with the grid of every signed permutation of the axes (48 storages,
+// RAS and LAS among them).
+template <class F>
+void for_every_signed_permutation(F f) {
   std::array<int, 3> perm{0, 1, 2};
   do {
     for (int signs = 0; signs < 8; ++signs) {
       std::array<double, 9> dir{};
       for (int c = 0; c < 3; ++c) dir[static_cast<std::size_t>(3 * perm[c] + c)] = (signs >> c & 1) ? -1.0 : 1.0;
-      const Geometry g = grid(dir);
-      const auto v = values_of(g);
-      const ms::AxisReorder r = ms::canonical_reorder(g);
-      const Geometry n = ms::reordered(g, r);
-      const auto w = ms::reordered_values(v, g, r);
-      expect_same_world_values(g, v, n, w);
-      for (int a = 0; a < 9; ++a) EXPECT_DOUBLE_EQ(n.direction[a], a % 4 == 0 ? 1.0 : 0.0);
+      f(grid(dir));
     }
   } while (std::next_permutation(perm.begin(), perm.end()));
+}
+
+TEST(ArrayOrder, EverySignedPermutationKeepsValuesAtTheirPositionsAndEndsAtIdentity) {
+  for_every_signed_permutation([](const Geometry& g) {
+    const auto v = values_of(g);
+    const ms::AxisReorder r = ms::canonical_reorder(g);
+    const Geometry n = ms::reordered(g, r);
+    const auto w = ms::reordered_values(v, g, r);
+    expect_same_world_values(g, v, n, w);
+    for (int a = 0; a < 9; ++a) EXPECT_DOUBLE_EQ(n.direction[a], a % 4 == 0 ? 1.0 : 0.0);
+  });
 }
 
 // The inverse brings a canonical grid and its values back to the stored order
 // exactly (outputs on the input's grid in its array order, io::in_stored_order).
 TEST(ArrayOrder, InverseRestoresTheStoredOrder) {
-  std::array<int, 3> perm{0, 1, 2};
-  do {
-    for (int signs = 0; signs < 8; ++signs) {
-      std::array<double, 9> dir{};
-      for (int c = 0; c < 3; ++c) dir[static_cast<std::size_t>(3 * perm[c] + c)] = (signs >> c & 1) ? -1.0 : 1.0;
-      const Geometry g = grid(dir);
-      const auto v = values_of(g);
-      const ms::AxisReorder r = ms::canonical_reorder(g);
-      const Geometry n = ms::reordered(g, r);
-      const ms::AxisReorder back = ms::inverse(r);
-      const Geometry h = ms::reordered(n, back);
-      EXPECT_EQ(ms::reordered_values(ms::reordered_values(v, g, r), n, back), v);
-      EXPECT_EQ(h.size, g.size);
-      for (int a = 0; a < 3; ++a) {
-        EXPECT_DOUBLE_EQ(h.spacing[a], g.spacing[a]);
-        EXPECT_NEAR(h.origin[a], g.origin[a], 1e-9);
-      }
-      for (int a = 0; a < 9; ++a) EXPECT_DOUBLE_EQ(h.direction[a], g.direction[a]);
+  for_every_signed_permutation([](const Geometry& g) {
+    const auto v = values_of(g);
+    const ms::AxisReorder r = ms::canonical_reorder(g);
+    const Geometry n = ms::reordered(g, r);
+    const ms::AxisReorder back = ms::inverse(r);
+    const Geometry h = ms::reordered(n, back);
+    EXPECT_EQ(ms::reordered_values(ms::reordered_values(v, g, r), n, back), v);
+    EXPECT_EQ(h.size, g.size);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_DOUBLE_EQ(h.spacing[a], g.spacing[a]);
+      EXPECT_NEAR(h.origin[a], g.origin[a], 1e-9);
     }
-  } while (std::next_permutation(perm.begin(), perm.end()));
+    for (int a = 0; a < 9; ++a) EXPECT_DOUBLE_EQ(h.direction[a], g.direction[a]);
+  });
 }
 
 // An oblique (gantry-tilted, rotated) grid: axes go to their nearest L/P/S.
