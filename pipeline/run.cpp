@@ -212,6 +212,7 @@ segmentation::Result segment_stage(const Volume& ct, const RunSettings& rs, cons
   S.atlas = seg.atlas;
   S.atlas_agreement = seg.atlas_agreement;
   S.image_zone_dice = seg.image_zone_dice;
+  S.welded_occlusion_mm2 = seg.welded_occlusion_mm2;
   for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);
   return seg;
 }

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <string>
 #include <utility>
 
 #include "reports/run_summary.h"
@@ -122,6 +124,21 @@ struct CheckList {
   }
 };
 
+// What a disagreement of the two separations means, with its cause when the
+// segmentation found one: upper teeth welded to the lower ones
+// (segmentation::Result::welded_occlusion_mm2, docs/segmentation.md).
+std::string separations_message(const RunSummary& s) {
+  std::string m =
+      "the image's separation and the atlas's zone disagree and the atlas did not verify the image's: the mandible's "
+      "extent is uncertain";
+  if (s.welded_occlusion_mm2 <= 0) return m + " (anatomy beyond the atlas's range, or another bone joined in the image)";
+  char area[32];
+  std::snprintf(area, sizeof area, "%.0f", s.welded_occlusion_mm2);
+  return m + ": the upper teeth are welded to the lower ones over " + area +
+         " mm2 (teeth in occlusion), so the image's separation took the maxilla and the atlas's zone leaves out the lower "
+         "crowns; a scan with the teeth apart (a bite block) or an external mask (--mask) avoids it";
+}
+
 // 1. Orientation and identification by the atlas (automatic segmentation
 //    only). The margin is measured when both an upright and a mirrored
 //    placement fit inside the scan; the agreement when the atlas was used.
@@ -143,9 +160,7 @@ void atlas_checks(const RunSummary& s, CheckList& out) {
           "the mask holds little of the atlas's mandible: a small or atrophic mandible, or parts of it missing");
   const double sep_range[2] = {kMinSeparationsDice, 1.0};
   out.add("separations_agree", s.image_zone_dice >= 0 ? s.image_zone_dice : kNaN, sep_range, "",
-          "inter-observer Dice of mandible contours on CT ~0.9 (Brouwer et al. 2012)", true,
-          "the image's separation and the atlas's zone disagree and the atlas did not verify the image's: the mandible's "
-          "extent is uncertain (anatomy beyond the atlas's range, or another bone joined in the image)");
+          "inter-observer Dice of mandible contours on CT ~0.9 (Brouwer et al. 2012)", true, separations_message(s));
 }
 
 // 2. Anatomical plausibility of the volume and of the landmarks' distances

@@ -35,6 +35,7 @@ struct RunSummary {
   atlas::Fit atlas;
   double atlas_agreement = -1;
   double image_zone_dice = -1;  // segmentation::Result::image_zone_dice
+  double welded_occlusion_mm2 = 0;  // segmentation::Result::welded_occlusion_mm2
   surface::MeshStats mesh;
   Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
   double closing_mm = 0;          // closing before meshing (0 = none)

@@ -1,6 +1,7 @@
 // ITK-facing translation unit: no system Eigen here (ENGINEERING.md).
 #include "segmentation/segmentation.h"
 #include "segmentation/atlas_zone.h"
+#include "segmentation/occlusion.h"
 #include "segmentation/voxel_ops.h"
 
 #include <itkBinShrinkImageFilter.h>
@@ -1983,6 +1984,13 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
   }
   Result zone = segment_by_atlas(ct, opt, fit);
   zone.image_zone_dice = dice(zone.mask, image.mask);
+  const WeldedOcclusion weld = welded_occlusion(
+      ct, image.mask, [&prior](const Vec3& q) { return prior.at(q); }, fit.pose.superior(), Plane{fit.pose.t, fit.pose.lateral()},
+      fit.pose.scale, opt.dense_threshold_hu, image.offset_hu);
+  if (std::getenv("MANDISYM_DEBUG_SEG"))
+    std::fprintf(stderr, "  image separation: %zu cheek-teeth columns run %.0f mm above the zone through enamel (%.0f mm2)\n",
+                 weld.columns, weld.area_mm2);
+  if (weld.welded()) zone.welded_occlusion_mm2 = weld.area_mm2;
   return zone;
 }
 

@@ -77,6 +77,12 @@ struct Result {
   // image's and the zone was taken (two independent estimates; docs/qc.md,
   // separations_agree); -1 when they were not compared.
   double image_zone_dice = -1;
+  // When image_zone_dice was measured: the area (mm2) of the dentition's
+  // columns where the image separation's mask runs in dense bone through
+  // enamel from the atlas's zone to beyond every training mandible, i.e. upper
+  // teeth welded to the lower ones (occlusion.h), when it covers at least a
+  // molar's occlusal table; else 0. The quality gate names it (docs/qc.md).
+  double welded_occlusion_mm2 = 0;
   double threshold_hu = 0;          // bone threshold used (after calibration offset)
   // HU level at which the mask's outer boundary was placed (after the
   // offset), on scans that resolve the cortex (voxels up to 1.25 mm: the

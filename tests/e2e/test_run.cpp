@@ -1089,7 +1089,8 @@ TEST(EndToEnd, ObliquePoseScoresBelowATwoMillimetreRamusDifference) {
 // and most are right. Measured at
 // 1 mm: 7 right (volumes within 5 %, landmarks <= 1.5 mm), member 8 exits 8
 // (separations_agree 0.72: its rami reach beyond the atlas's support grown by
-// 5 mm, docs/segmentation.md).
+// 5 mm, docs/segmentation.md), and its refusal does not blame the teeth (1.5 mm
+// apart; 3 mm2 of its cheek-teeth columns rise 12 mm above the zone, 100 needed).
 TEST(EndToEnd, RandomAnatomyFamilyIsRightOrRefused) {
   int right = 0;
   for (int n = 1; n <= 8; ++n) {
@@ -1119,6 +1120,13 @@ TEST(EndToEnd, RandomAnatomyFamilyIsRightOrRefused) {
                 true_volume / 1000, worst, r.at("qc").at("status").get<std::string>().c_str());
     EXPECT_TRUE(is_right || code == 8) << name << ": a wrong answer that passed the quality gate";
     EXPECT_FALSE(is_right && code == 8) << name << ": a right answer refused by the quality gate";
+    // A refusal names its cause: teeth in occlusion only when the teeth touch
+    // (member 8, teeth 1.5 mm apart, is refused for its long rami).
+    const double gap = load(ph / "ground_truth" / "params.json").at("occlusal_gap_mm").get<double>();
+    for (const Value& c : r.at("qc").at("checks"))
+      if (c.at("name").get<std::string>() == "separations_agree" && gap >= 1.0)
+        EXPECT_EQ(c.value("meaning", std::string()).find("teeth in occlusion"), std::string::npos)
+            << name << ": teeth " << gap << " mm apart read as welded";
     right += is_right;
     fs::remove_all(ph);
     fs::remove_all(out);
