@@ -134,6 +134,11 @@ std::string separations_message(const RunSummary& s) {
   if (s.welded_occlusion_mm2 <= 0) return m + " (anatomy beyond the atlas's range, or another bone joined in the image)";
   char area[32];
   std::snprintf(area, sizeof area, "%.0f", s.welded_occlusion_mm2);
+  if (s.occlusion_cut_refused)
+    return m + ": the upper teeth are welded to the lower ones over " + area +
+           " mm2 (teeth in occlusion); cut at the occlusal plane, the image's separation still joined other bone (a joint "
+           "space or another contact it does not resolve), and the atlas's zone leaves out the lower crowns; an external "
+           "mask (--mask) avoids it";
   return m + ": the upper teeth are welded to the lower ones over " + area +
          " mm2 (teeth in occlusion), so the image's separation took the maxilla and the atlas's zone leaves out the lower "
          "crowns; a scan with the teeth apart (a bite block) or an external mask (--mask) avoids it";

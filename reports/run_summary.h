@@ -36,6 +36,7 @@ struct RunSummary {
   double atlas_agreement = -1;
   double image_zone_dice = -1;  // segmentation::Result::image_zone_dice
   double welded_occlusion_mm2 = 0;  // segmentation::Result::welded_occlusion_mm2
+  bool occlusion_cut_refused = false;  // segmentation::Result::occlusion_cut_refused
   surface::MeshStats mesh;
   Mesh surface;  // the final mandible surface (LPS mm), for the report's interactive viewer
   double closing_mm = 0;          // closing before meshing (0 = none)

@@ -2,7 +2,10 @@
 
 #include <array>
 #include <cmath>
+#include <algorithm>
+#include <limits>
 #include <utility>
+#include <vector>
 
 #include "segmentation/atlas_zone.h"
 
@@ -22,6 +25,48 @@ std::pair<int, int> column_axis(const Geometry& g, const Vec3& superior) {
   return {best, best_dot > 0 ? 1 : -1};
 }
 
+
+// One column of the grid along the column axis, walked upwards.
+struct Column {
+  const Geometry& g;
+  std::size_t ax, ax_a, ax_b, nt;
+  int up;
+  std::array<std::size_t, 3> ijk{};
+  Column(const Geometry& geom, int axis, int up_sign)
+      : g(geom), ax(static_cast<std::size_t>(axis)), ax_a(axis == 0 ? 1 : 0), ax_b(axis == 2 ? 1 : 2),
+        nt(geom.size[static_cast<std::size_t>(axis)]), up(up_sign) {}
+  void at_column(std::size_t a, std::size_t b) { ijk[ax_a] = a, ijk[ax_b] = b; }
+  // u counts voxels from the column's inferior end; sets ijk.
+  std::size_t voxel(std::size_t u) {
+    ijk[ax] = up > 0 ? u : nt - 1 - u;
+    return g.linear(ijk[0], ijk[1], ijk[2]);
+  }
+  Vec3 lps() const { return g.index_to_lps(static_cast<double>(ijk[0]), static_cast<double>(ijk[1]), static_cast<double>(ijk[2])); }
+  // Height (mm) of index u along the superior direction, from the column's inferior end.
+  double height_mm(double u) const { return u * g.spacing[ax]; }
+};
+
+// A run of dense mask voxels [u0, u1) of a column: welded when, above its
+// last zone voxel, it rises at least kWeldRiseMm with enamel on the way.
+// Returns the middle (u units) between its lowest and highest enamel voxels
+// when welded, else -1.
+double welded_run_contact(Column& c, std::size_t u0, std::size_t u1, const Volume& ct,
+                          const std::function<double(const Vec3&)>& p, float enamel) {
+  long last_zone = -1;
+  for (std::size_t u = u0; u < u1; ++u) {
+    c.voxel(u);
+    if (p(c.lps()) >= kAtlasZoneP) last_zone = static_cast<long>(u);
+  }
+  if (last_zone < 0 || c.height_mm(static_cast<double>(u1 - 1 - static_cast<std::size_t>(last_zone))) < kWeldRiseMm) return -1;
+  long lowest = -1, highest = -1;
+  for (std::size_t u = u0; u < u1; ++u)
+    if (ct.hu[c.voxel(u)] >= enamel) {
+      if (lowest < 0) lowest = static_cast<long>(u);
+      highest = static_cast<long>(u);
+    }
+  return highest > last_zone ? 0.5 * static_cast<double>(lowest + highest) : -1;
+}
+
 }  // namespace
 
 WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::function<double(const Vec3&)>& p,
@@ -30,44 +75,134 @@ WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::
   const Geometry& g = ct.geom;
   const auto [axis, up] = column_axis(g, superior);
   if (axis < 0 || !g.same_grid(mask.geom)) return out;
-  const std::size_t ax = static_cast<std::size_t>(axis), ax_a = axis == 0 ? 1 : 0, ax_b = axis == 2 ? 1 : 2;
-  const std::size_t na = g.size[ax_a], nb = g.size[ax_b], nt = g.size[ax];
+  out.axis = axis, out.up = up;
+  Column c(g, axis, up);
+  const std::size_t na = g.size[c.ax_a], nb = g.size[c.ax_b];
   const auto dense = static_cast<float>(dense_hu + offset_hu), enamel = static_cast<float>(kEnamelHu + offset_hu);
   for (std::size_t b = 0; b < nb; ++b)
     for (std::size_t a = 0; a < na; ++a) {
-      // Walk the column upwards: u counts voxels from its inferior end.
-      std::array<std::size_t, 3> ijk{};
-      ijk[ax_a] = a, ijk[ax_b] = b;
-      auto at = [&](std::size_t u) {
-        ijk[ax] = up > 0 ? u : nt - 1 - u;
-        return g.linear(ijk[0], ijk[1], ijk[2]);
-      };
-      // In one run of dense mask voxels, going up: the zone, then at least
-      // kWeldRiseMm outside it, through enamel.
-      bool zone = false, crown = false, welded = false;
-      double rise = 0;  // mm above the zone's last voxel in this run
-      for (std::size_t u = 0; u < nt && !welded; ++u) {
-        const std::size_t i = at(u);
-        if (!mask.data[i] || ct.hu[i] < dense) {  // the run ends
-          zone = crown = false;
+      c.at_column(a, b);
+      for (std::size_t u = 0; u < c.nt;) {  // the runs of dense mask voxels
+        const std::size_t i = c.voxel(u);
+        if (!mask.data[i] || ct.hu[i] < dense) {
+          ++u;
           continue;
         }
-        const Vec3 q = g.index_to_lps(static_cast<double>(ijk[0]), static_cast<double>(ijk[1]), static_cast<double>(ijk[2]));
-        const double side = std::abs(dot(q - midline.point, midline.normal));
+        const double side = std::abs(dot(c.lps() - midline.point, midline.normal));
         if (side < kPosteriorTeethMm[0] * scale || side > kPosteriorTeethMm[1] * scale) break;  // not the cheek teeth
-        if (p(q) >= kAtlasZoneP) {
-          zone = true, crown = false, rise = 0;
-          continue;
+        std::size_t u1 = u;
+        while (u1 < c.nt && mask.data[c.voxel(u1)] && ct.hu[c.voxel(u1)] >= dense) ++u1;
+        const double mid = welded_run_contact(c, u, u1, ct, p, enamel);
+        if (mid >= 0) {
+          out.contacts.push_back({static_cast<double>(a) * g.spacing[c.ax_a], static_cast<double>(b) * g.spacing[c.ax_b],
+                                  c.height_mm(up > 0 ? mid : static_cast<double>(c.nt - 1) - mid)});
+          break;  // one contact per column: its lowest welded run
         }
-        if (!zone) continue;
-        rise += g.spacing[ax];
-        crown = crown || ct.hu[i] >= enamel;
-        welded = crown && rise >= kWeldRiseMm;
+        u = u1;
       }
-      out.columns += welded;
     }
-  out.area_mm2 = static_cast<double>(out.columns) * g.spacing[ax_a] * g.spacing[ax_b];
+  out.columns = out.contacts.size();
+  out.area_mm2 = static_cast<double>(out.columns) * g.spacing[c.ax_a] * g.spacing[c.ax_b];
   return out;
+}
+
+}  // namespace ms::segmentation
+
+namespace ms::segmentation {
+namespace {
+
+// Huber-weighted least squares of s = c0 + c1 a + c2 b, iteratively
+// reweighted; returns the robust scale, or -1 when the contacts are collinear.
+double huber_plane(const std::vector<OcclusalContact>& xs, double min_scale, std::array<double, 3>& c) {
+  std::vector<double> w(xs.size(), 1.0), r(xs.size(), 0.0);
+  double scale = min_scale;
+  for (int iter = 0; iter < 12; ++iter) {
+    double m[3][4] = {};
+    for (std::size_t k = 0; k < xs.size(); ++k) {
+      const double x[3] = {1.0, xs[k].a_mm, xs[k].b_mm};
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) m[i][j] += w[k] * x[i] * x[j];
+        m[i][3] += w[k] * x[i] * xs[k].s_mm;
+      }
+    }
+    for (int i = 0; i < 3; ++i) {  // Gauss-Jordan, partial pivoting
+      int piv = i;
+      for (int j = i + 1; j < 3; ++j)
+        if (std::abs(m[j][i]) > std::abs(m[piv][i])) piv = j;
+      for (int j = 0; j < 4; ++j) std::swap(m[i][j], m[piv][j]);
+      if (std::abs(m[i][i]) < 1e-9) return -1;
+      for (int j = 0; j < 3; ++j) {
+        if (j == i) continue;
+        const double f = m[j][i] / m[i][i];
+        for (int l = 0; l < 4; ++l) m[j][l] -= f * m[i][l];
+      }
+    }
+    for (std::size_t i = 0; i < 3; ++i) c[i] = m[i][3] / m[i][i];
+    for (std::size_t k = 0; k < xs.size(); ++k) r[k] = std::abs(xs[k].s_mm - (c[0] + c[1] * xs[k].a_mm + c[2] * xs[k].b_mm));
+    std::vector<double> sorted = r;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+    scale = std::max(min_scale, 1.4826 * sorted[sorted.size() / 2]);
+    for (std::size_t k = 0; k < xs.size(); ++k) w[k] = r[k] <= 2 * scale ? 1.0 : 2 * scale / r[k];
+  }
+  return scale;
+}
+
+}  // namespace
+
+OcclusalPlane fit_occlusal_plane(const WeldedOcclusion& weld) {
+  OcclusalPlane out;
+  if (!weld.welded() || weld.contacts.size() < 3) return out;
+  std::array<double, 3> c{};
+  out.spread_mm = huber_plane(weld.contacts, 1.0, c);
+  if (out.spread_mm < 0) return out;
+  out.axis = weld.axis, out.up = weld.up;
+  out.c0 = c[0], out.c1 = c[1], out.c2 = c[2];
+  out.tilt_deg = std::atan(std::hypot(c[1], c[2])) * 180.0 / 3.14159265358979323846;
+  out.found = out.tilt_deg <= kOcclusalMaxTiltDeg;
+  return out;
+}
+
+std::size_t cut_at_occlusal_plane(Volume& ct, const OcclusalPlane& plane, const WeldedOcclusion& weld, const Plane& midline,
+                                  const Vec3& anterior, double offset_hu) {
+  if (!plane.found) return 0;
+  const Geometry& g = ct.geom;
+  Column c(g, plane.axis, plane.up);
+  const double h = g.spacing[c.ax], sa = g.spacing[c.ax_a], sb = g.spacing[c.ax_b];
+  auto index_at = [&](std::size_t a, std::size_t b) {  // index along the axis of the voxel just above the plane
+    const double s = (plane.c0 + plane.c1 * static_cast<double>(a) * sa + plane.c2 * static_cast<double>(b) * sb) / h;
+    return plane.up > 0 ? std::ceil(s - 1e-9) : std::floor(s + 1e-9);
+  };
+  auto lps_at = [&](std::size_t a, std::size_t b, double t) {
+    std::array<double, 3> x{};
+    x[c.ax_a] = static_cast<double>(a), x[c.ax_b] = static_cast<double>(b), x[c.ax] = t;
+    return g.index_to_lps(x[0], x[1], x[2]);
+  };
+  // The rearmost welded contact along the anterior axis, and the farthest
+  // from the midline.
+  double rear = std::numeric_limits<double>::infinity(), side = 0;
+  for (const OcclusalContact& k : weld.contacts) {
+    const auto a = static_cast<std::size_t>(std::lround(k.a_mm / sa)), b = static_cast<std::size_t>(std::lround(k.b_mm / sb));
+    const Vec3 q = lps_at(a, b, k.s_mm / h) - midline.point;
+    rear = std::min(rear, dot(q, anterior));
+    side = std::max(side, std::abs(dot(q, midline.normal)));
+  }
+  side += kOcclusalCutMarginMm;
+  rear -= kOcclusalCutMarginMm;
+  const auto air = static_cast<float>(-1000.0 + offset_hu);
+  std::size_t changed = 0;
+  for (std::size_t b = 0; b < g.size[c.ax_b]; ++b)
+    for (std::size_t a = 0; a < g.size[c.ax_a]; ++a) {
+      const double t = index_at(a, b);
+      if (t < 0 || t >= static_cast<double>(c.nt)) continue;
+      const Vec3 q = lps_at(a, b, t);
+      if (std::abs(dot(q - midline.point, midline.normal)) > side) continue;
+      if (dot(q - midline.point, anterior) < rear) continue;
+      c.at_column(a, b);
+      const std::size_t i = c.voxel(plane.up > 0 ? static_cast<std::size_t>(t) : c.nt - 1 - static_cast<std::size_t>(t));
+      if (ct.hu[i] > air) ++changed;
+      ct.hu[i] = air;
+    }
+  return changed;
 }
 
 }  // namespace ms::segmentation

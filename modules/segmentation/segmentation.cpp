@@ -1950,6 +1950,43 @@ constexpr double kImageInSupport = 0.97;
 constexpr double kImageEvidenceShare = 0.6;
 constexpr double kZoneCheckSpacingMm = 1.0;
 
+// Teeth in occlusion (docs/segmentation.md, "Teeth in occlusion"): the
+// atlas refused the image's mask and upper teeth are welded to the lower ones
+// in it. The weld is cut at the occlusal contact plane (fit_occlusal_plane,
+// cut_at_occlusal_plane), the image separation runs again on the cut scan,
+// and its mask is taken when the atlas verifies it as it would the first.
+// tried: set when the cut was made (a plane was found).
+static std::optional<Result> separate_at_occlusal_plane(const Volume& ct, const Options& opt, const atlas::Fit& fit,
+                                                        const GridContext& whole, const WeldedOcclusion& weld, double offset_hu,
+                                                        const atlas::MandiblePrior& prior, double zone_mm3, bool& tried) {
+  const bool debug = std::getenv("MANDISYM_DEBUG_SEG") != nullptr;
+  const OcclusalPlane plane = fit_occlusal_plane(weld);
+  if (debug)
+    std::fprintf(stderr, "  occlusal plane: %s, tilt %.1f deg, contacts' spread %.1f mm\n", plane.found ? "found" : "not found",
+                 plane.tilt_deg, plane.spread_mm);
+  if (!plane.found) return std::nullopt;
+  const atlas::Pose& pose = fit.pose;
+  Vec3 anterior = pose.apply({0, -1, 0}) - pose.apply({0, 0, 0});
+  anterior = (1.0 / norm(anterior)) * anterior;
+  Volume cut = ct;
+  const std::size_t n_cut = cut_at_occlusal_plane(cut, plane, weld, Plane{pose.t, pose.lateral()}, anterior, offset_hu);
+  tried = true;
+  Result again;
+  try {
+    again = segment_auto_with(cut, opt, whole);
+  } catch (const Error&) {
+    return std::nullopt;
+  }
+  if (again.separation_radius_mm <= 0) return std::nullopt;
+  const ZoneCheck c = check_against_zone(again.mask, zone_mm3, prior, pose);
+  if (debug)
+    std::fprintf(stderr, "  cut at the occlusal plane (%zu voxels): %.3f in its support, %.3f of the zone's evidence\n", n_cut,
+                 c.in_support, c.evidence);
+  if (c.in_support < kImageInSupport || c.evidence < kImageEvidenceShare) return std::nullopt;
+  again.marker_source += " (verified by the atlas; teeth in occlusion cut at the occlusal plane)";
+  return again;
+}
+
 static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, const atlas::Fit& fit, const GridContext& whole) {
   const Geometry& g = ct.geom;
   // The image separates what its voxels resolve (resolves_cortex: 1.25 mm
@@ -1982,15 +2019,20 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
     image.marker_source += " (verified by the atlas)";
     return image;
   }
-  Result zone = segment_by_atlas(ct, opt, fit);
-  zone.image_zone_dice = dice(zone.mask, image.mask);
   const WeldedOcclusion weld = welded_occlusion(
       ct, image.mask, [&prior](const Vec3& q) { return prior.at(q); }, fit.pose.superior(), Plane{fit.pose.t, fit.pose.lateral()},
       fit.pose.scale, opt.dense_threshold_hu, image.offset_hu);
   if (std::getenv("MANDISYM_DEBUG_SEG"))
     std::fprintf(stderr, "  image separation: %zu cheek-teeth columns run %.0f mm above the zone through enamel (%.0f mm2)\n",
-                 weld.columns, weld.area_mm2);
-  if (weld.welded()) zone.welded_occlusion_mm2 = weld.area_mm2;
+                 weld.columns, kWeldRiseMm, weld.area_mm2);
+  bool plane_cut_tried = false;
+  if (weld.welded())
+    if (std::optional<Result> cut =
+            separate_at_occlusal_plane(ct, opt, fit, whole, weld, image.offset_hu, prior, zone_mm3, plane_cut_tried))
+      return std::move(*cut);
+  Result zone = segment_by_atlas(ct, opt, fit);
+  zone.image_zone_dice = dice(zone.mask, image.mask);
+  if (weld.welded()) zone.welded_occlusion_mm2 = weld.area_mm2, zone.occlusion_cut_refused = plane_cut_tried;
   return zone;
 }
 

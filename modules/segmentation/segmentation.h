@@ -83,6 +83,9 @@ struct Result {
   // teeth welded to the lower ones (occlusion.h), when it covers at least a
   // molar's occlusal table; else 0. The quality gate names it (docs/qc.md).
   double welded_occlusion_mm2 = 0;
+  // ... and the weld was cut at the occlusal plane, but the atlas refused the
+  // image's separation of the cut scan as well (other bone joined elsewhere).
+  bool occlusion_cut_refused = false;
   double threshold_hu = 0;          // bone threshold used (after calibration offset)
   // HU level at which the mask's outer boundary was placed (after the
   // offset), on scans that resolve the cortex (voxels up to 1.25 mm: the
