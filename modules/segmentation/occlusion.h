@@ -1,14 +1,14 @@
 // Teeth in occlusion welded across the occlusal table (docs/segmentation.md,
-// "Teeth in occlusion"): the cause the quality gate names when the image
-// separation took other bone.
+// "Teeth in occlusion: cut at the occlusal plane"): finding the weld, the
+// occlusal contact plane, and the cut that parts the upper teeth from the
+// lower ones before the image separation runs again.
 //
 // With the teeth in occlusion on a scan of about 1 mm, the upper crowns can
 // be welded to the lower ones across the whole occlusal table: no intensity
 // valley and no neck lies between them, the upper teeth join the mandible's
 // dense core, and the image separation floods the maxilla. Such a weld shows
-// as columns of the dentition (along the head's superior axis) that run in
-// dense bone, through enamel, from where most training mandibles lie (the
-// atlas's zone) to beyond every one.
+// as cheek-teeth columns (along the head's superior axis) that run in dense
+// bone, through enamel, from the atlas's zone to well above it.
 #pragma once
 
 #include <functional>
