@@ -1,8 +1,12 @@
 #include "segmentation/occlusion.h"
 
+// Eigen-facing translation unit (the plane fit): no ITK headers here
+// (ENGINEERING.md).
+#include <Eigen/Dense>
+
+#include <algorithm>
 #include <array>
 #include <cmath>
-#include <algorithm>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -90,8 +94,11 @@ WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::
         }
         const double side = std::abs(dot(c.lps() - midline.point, midline.normal));
         if (side < kPosteriorTeethMm[0] * scale || side > kPosteriorTeethMm[1] * scale) break;  // not the cheek teeth
-        std::size_t u1 = u;
-        while (u1 < c.nt && mask.data[c.voxel(u1)] && ct.hu[c.voxel(u1)] >= dense) ++u1;
+        std::size_t u1 = u + 1;
+        for (; u1 < c.nt; ++u1) {
+          const std::size_t j = c.voxel(u1);
+          if (!mask.data[j] || ct.hu[j] < dense) break;
+        }
         const double mid = welded_run_contact(c, u, u1, ct, p, enamel);
         if (mid >= 0) {
           out.contacts.push_back({static_cast<double>(a) * g.spacing[c.ax_a], static_cast<double>(b) * g.spacing[c.ax_b],
@@ -106,43 +113,31 @@ WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::
   return out;
 }
 
-}  // namespace ms::segmentation
-
-namespace ms::segmentation {
 namespace {
 
 // Huber-weighted least squares of s = c0 + c1 a + c2 b, iteratively
 // reweighted; returns the robust scale, or -1 when the contacts are collinear.
 double huber_plane(const std::vector<OcclusalContact>& xs, double min_scale, std::array<double, 3>& c) {
-  std::vector<double> w(xs.size(), 1.0), r(xs.size(), 0.0);
+  const auto n = static_cast<Eigen::Index>(xs.size());
+  Eigen::MatrixXd x(n, 3);
+  Eigen::VectorXd s(n), w = Eigen::VectorXd::Ones(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const OcclusalContact& q = xs[static_cast<std::size_t>(k)];
+    x.row(k) << 1.0, q.a_mm, q.b_mm;
+    s(k) = q.s_mm;
+  }
   double scale = min_scale;
   for (int iter = 0; iter < 12; ++iter) {
-    double m[3][4] = {};
-    for (std::size_t k = 0; k < xs.size(); ++k) {
-      const double x[3] = {1.0, xs[k].a_mm, xs[k].b_mm};
-      for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) m[i][j] += w[k] * x[i] * x[j];
-        m[i][3] += w[k] * x[i] * xs[k].s_mm;
-      }
-    }
-    for (int i = 0; i < 3; ++i) {  // Gauss-Jordan, partial pivoting
-      int piv = i;
-      for (int j = i + 1; j < 3; ++j)
-        if (std::abs(m[j][i]) > std::abs(m[piv][i])) piv = j;
-      for (int j = 0; j < 4; ++j) std::swap(m[i][j], m[piv][j]);
-      if (std::abs(m[i][i]) < 1e-9) return -1;
-      for (int j = 0; j < 3; ++j) {
-        if (j == i) continue;
-        const double f = m[j][i] / m[i][i];
-        for (int l = 0; l < 4; ++l) m[j][l] -= f * m[i][l];
-      }
-    }
-    for (std::size_t i = 0; i < 3; ++i) c[i] = m[i][3] / m[i][i];
-    for (std::size_t k = 0; k < xs.size(); ++k) r[k] = std::abs(xs[k].s_mm - (c[0] + c[1] * xs[k].a_mm + c[2] * xs[k].b_mm));
-    std::vector<double> sorted = r;
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
-    scale = std::max(min_scale, 1.4826 * sorted[sorted.size() / 2]);
-    for (std::size_t k = 0; k < xs.size(); ++k) w[k] = r[k] <= 2 * scale ? 1.0 : 2 * scale / r[k];
+    const Eigen::Matrix3d normal = x.transpose() * w.asDiagonal() * x;
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(normal);
+    if (lu.rank() < 3) return -1;
+    const Eigen::Vector3d fit = lu.solve(x.transpose() * w.asDiagonal() * s);
+    const Eigen::VectorXd r = (s - x * fit).cwiseAbs();
+    std::vector<double> sorted(r.data(), r.data() + n);
+    std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+    scale = std::max(min_scale, 1.4826 * sorted[static_cast<std::size_t>(n / 2)]);
+    w = r.unaryExpr([scale](double v) { return v <= 2 * scale ? 1.0 : 2 * scale / v; });
+    c = {fit(0), fit(1), fit(2)};
   }
   return scale;
 }

@@ -188,3 +188,26 @@ TEST(Qc, AProcessFarFromItsMirroredPartnerWarns) {
   EXPECT_FALSE(c->fatal);
   EXPECT_EQ(q.status, "warn");
 }
+
+// separations_agree fails below 0.85 and names its cause when the
+// segmentation found one: teeth welded in occlusion, with or without the cut
+// at the occlusal plane having been made (docs/qc.md).
+TEST(Qc, SeparationsThatDisagreeFailAndNameTheWeld) {
+  RunSummary s = good_run();
+  s.image_zone_dice = 0.59;
+  const QcCheck* c = check(evaluate_qc(s), "separations_agree");
+  ASSERT_NE(c, nullptr);
+  EXPECT_FALSE(c->passed);
+  EXPECT_EQ(c->message.find("teeth in occlusion"), std::string::npos) << c->message;
+  s.welded_occlusion_mm2 = 193;
+  const Qc welded = evaluate_qc(s);
+  EXPECT_EQ(welded.status, "fail");
+  c = check(welded, "separations_agree");
+  EXPECT_NE(c->message.find("welded to the lower ones over 193 mm2 (teeth in occlusion)"), std::string::npos) << c->message;
+  EXPECT_NE(c->message.find("teeth apart"), std::string::npos) << c->message;
+  s.occlusion_cut_refused = true;
+  c = check(evaluate_qc(s), "separations_agree");
+  EXPECT_NE(c->message.find("cut at the occlusal plane"), std::string::npos) << c->message;
+  s.image_zone_dice = 0.9;  // the two agree: no failure, whatever the weld
+  EXPECT_TRUE(check(evaluate_qc(s), "separations_agree")->passed);
+}
