@@ -50,7 +50,7 @@ struct Column {
   double height_mm(double u) const { return u * g.spacing[ax]; }
 };
 
-// A run of dense mask voxels [u0, u1) of a column: welded when, above its
+// A run of dense voxels [u0, u1) of a column: welded when, above its
 // last zone voxel, it rises at least kWeldRiseMm with enamel on the way.
 // Returns the middle (u units) between its lowest and highest enamel voxels
 // when welded, else -1.
@@ -73,12 +73,12 @@ double welded_run_contact(Column& c, std::size_t u0, std::size_t u1, const Volum
 
 }  // namespace
 
-WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::function<double(const Vec3&)>& p,
-                                 const Vec3& superior, const Plane& midline, double scale, double dense_hu, double offset_hu) {
+WeldedOcclusion welded_occlusion(const Volume& ct, const std::function<double(const Vec3&)>& p, const Vec3& superior,
+                                 const Plane& midline, double scale, double dense_hu, double offset_hu) {
   WeldedOcclusion out;
   const Geometry& g = ct.geom;
   const auto [axis, up] = column_axis(g, superior);
-  if (axis < 0 || !g.same_grid(mask.geom)) return out;
+  if (axis < 0) return out;
   out.axis = axis, out.up = up;
   Column c(g, axis, up);
   const std::size_t na = g.size[c.ax_a], nb = g.size[c.ax_b];
@@ -86,9 +86,9 @@ WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::
   for (std::size_t b = 0; b < nb; ++b)
     for (std::size_t a = 0; a < na; ++a) {
       c.at_column(a, b);
-      for (std::size_t u = 0; u < c.nt;) {  // the runs of dense mask voxels
+      for (std::size_t u = 0; u < c.nt;) {  // the runs of dense voxels
         const std::size_t i = c.voxel(u);
-        if (!mask.data[i] || ct.hu[i] < dense) {
+        if (ct.hu[i] < dense) {
           ++u;
           continue;
         }
@@ -97,7 +97,7 @@ WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::
         std::size_t u1 = u + 1;
         for (; u1 < c.nt; ++u1) {
           const std::size_t j = c.voxel(u1);
-          if (!mask.data[j] || ct.hu[j] < dense) break;
+          if (ct.hu[j] < dense) break;
         }
         const double mid = welded_run_contact(c, u, u1, ct, p, enamel);
         if (mid >= 0) {

@@ -105,17 +105,18 @@ constexpr double kOcclusalCutMarginMm = 5.0;
 std::size_t cut_at_occlusal_plane(Volume& ct, const OcclusalPlane& plane, const WeldedOcclusion& weld, const Plane& midline,
                                   const Vec3& anterior, double offset_hu);
 
-// ct: the scan (HU); mask: the image separation's mask on ct's grid; p: the
-// placed atlas's mandible probability at an LPS point; superior: the head's
-// superior axis (LPS, unit); midline: the atlas's mid-sagittal plane placed in
-// the scan; scale: the atlas's fitted scale. A column (along the grid axis
-// nearest the superior axis; none when no axis is within 45 degrees) within
-// the cheek teeth's band (kPosteriorTeethMm, times scale, from the midline)
-// is welded when a run of mask voxels at least dense_hu holds, going up, a
-// voxel of the atlas's zone (p >= kAtlasZoneP), then at least kWeldRiseMm of
-// voxels outside it with enamel (kEnamelHu) among them: a crown sitting on a
-// lower crown. HU thresholds are before the calibration offset offset_hu.
-WeldedOcclusion welded_occlusion(const Volume& ct, const Mask& mask, const std::function<double(const Vec3&)>& p,
-                                 const Vec3& superior, const Plane& midline, double scale, double dense_hu, double offset_hu);
+// ct: the scan (HU); p: the placed atlas's mandible probability at an LPS
+// point; superior: the head's superior axis (LPS, unit); midline: the atlas's
+// mid-sagittal plane placed in the scan; scale: the atlas's fitted scale. The
+// weld is read from the scan, not from a segmentation: whether the teeth
+// touch does not depend on what a separation took. A column (along the grid
+// axis nearest the superior axis; none when no axis is within 45 degrees)
+// within the cheek teeth's band (kPosteriorTeethMm, times scale, from the
+// midline) is welded when a run of voxels at least dense_hu holds, going up,
+// a voxel of the atlas's zone (p >= kAtlasZoneP), then at least kWeldRiseMm
+// of voxels outside it with enamel (kEnamelHu) among them: a crown sitting on
+// a lower crown. HU thresholds are before the calibration offset offset_hu.
+WeldedOcclusion welded_occlusion(const Volume& ct, const std::function<double(const Vec3&)>& p, const Vec3& superior,
+                                 const Plane& midline, double scale, double dense_hu, double offset_hu);
 
 }  // namespace ms::segmentation

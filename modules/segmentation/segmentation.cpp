@@ -853,6 +853,43 @@ static MarkerChoice deepest_mandible_core(const std::vector<float>& sd, const ch
   return choice;
 }
 
+// Another bone touching the mandible (docs/segmentation.md, "Other bones
+// attached beyond the band"): a thick part kept beyond the band that lies
+// mostly (kOtherBoneOutsideSupport of its voxels) where no training
+// mandible reaches (p < kAtlasSupportP, the placed atlas) and is the size of
+// a bone (kOtherBoneMinMm3) is dropped. The hyoid is the bone that comes to
+// touch the lower border (an open mouth, a flexed neck): its body alone is
+// ~25 x 10 x 10 mm (Gray's Anatomy, 42nd ed.), about 2 cm3. A lump smaller
+// than an eighth of that is the mandible's own surface where the atlas's
+// support ends (random phantom anatomies: 20-40 mm3 at the posterior
+// border of rami wider than any training mandible's), and is kept.
+constexpr double kOtherBoneOutsideSupport = 0.5;
+constexpr double kOtherBoneMinMm3 = 250.0;
+
+// Drops from kept (the band and its thick attached parts) every part beyond
+// the band (nd2 > band2: squared mm to the core) that is another bone by
+// the rule above; prior: the placed atlas's probability at every bone voxel.
+static void drop_other_bones(std::vector<std::uint8_t>& kept, const std::vector<float>& nd2, float band2,
+                             const std::vector<float>& prior, const Geometry& cg, bool debug) {
+  std::vector<std::uint8_t> beyond(kept.size(), 0);
+  for (std::size_t i = 0; i < kept.size(); ++i) beyond[i] = kept[i] && nd2[i] > band2;
+  std::vector<std::uint32_t> lab(kept.size());
+  const std::size_t n = label_components(beyond.data(), cg.size, false, 0, lab.data()).count;
+  std::vector<std::size_t> voxels(n + 1, 0), outside(n + 1, 0);
+  for (std::size_t i = 0; i < kept.size(); ++i)
+    if (lab[i]) ++voxels[lab[i]], outside[lab[i]] += prior[i] < kAtlasSupportP;
+  std::vector<std::uint8_t> other(n + 1, 0);
+  for (std::size_t l = 1; l <= n; ++l) {
+    const double mm3 = static_cast<double>(voxels[l]) * cg.voxel_volume_mm3();
+    other[l] = mm3 >= kOtherBoneMinMm3 && outside[l] > kOtherBoneOutsideSupport * static_cast<double>(voxels[l]);
+    if (debug && other[l])
+      std::fprintf(stderr, "  another bone attached beyond the band: %.2f cm3, %.2f outside the atlas's support (dropped)\n",
+                   mm3 / 1000, static_cast<double>(outside[l]) / static_cast<double>(voxels[l]));
+  }
+  for (std::size_t i = 0; i < kept.size(); ++i)
+    if (lab[i] && other[lab[i]]) kept[i] = 0;
+}
+
 // What of the mandible's watershed region rm is kept (step 6): the part
 // within `band` mm of its core (core_m), so that thin bright structures
 // flooded from it (streaks) stay out, and beyond it, up to `reach` mm, what
@@ -860,9 +897,11 @@ static MarkerChoice deepest_mandible_core(const std::vector<float>& sd, const ch
 // sheets one or two voxels thin; a tooth crown whose thin shell left no core
 // within the band stays), only where attached through bone to the band part
 // (a separate bone without a marker of its own, the hyoid, is flooded by
-// whichever region reaches it through the background and must stay out).
+// whichever region reaches it through the background and must stay out:
+// beyond the band, drop_other_bones drops it when the atlas is placed,
+// prior is its probability at every bone voxel, empty without it).
 static std::vector<std::uint8_t> band_and_attached(const std::vector<std::uint8_t>& rm, const std::vector<std::uint8_t>& core_m, float band,
-                                                   float reach, const Geometry& cg, SegLap& lap) {
+                                                   float reach, const std::vector<float>& prior, const Geometry& cg, SegLap& lap) {
   const Dims3& cdims = cg.size;
   const Box mbox = bounding_box(rm.data(), cdims, 2);  // where the band distance and the opening are needed
   const float band2 = band * band, reach2 = reach * reach;
@@ -887,6 +926,7 @@ static std::vector<std::uint8_t> band_and_attached(const std::vector<std::uint8_
     if (cl[i] && nd2[i] <= band2) attached[cl[i]] = true;
   std::vector<std::uint8_t> kept(cg.voxel_count(), 0);
   for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = cl[i] && attached[cl[i]];
+  if (!prior.empty() && reach > band) drop_other_bones(kept, nd2, band2, prior, cg, lap.on());
   return kept;
 }
 
@@ -1165,8 +1205,8 @@ static MandibleRegion mandible_region(const unsigned* w, const std::uint8_t* bon
 // Fills out.mand and out.other.
 static void reconstruct(Separated& out, const MaskImage* bone, const MaskImage* dense_solid, const MarkerChoice& choice,
                         std::vector<float>& bone_depth, const std::vector<float>& hu_crop, double offset, float depth_cap,
-                        const std::array<bool, 6>& crop_cut, double max_spacing, const GridContext& ctx, const Options& opt,
-                        SegLap& lap) {
+                        const std::array<bool, 6>& crop_cut, double max_spacing, const std::vector<float>& prior,
+                        const GridContext& ctx, const Options& opt, SegLap& lap) {
   const Geometry& cg = out.cg;
   const double voxel_mm3 = cg.voxel_volume_mm3();
   const auto* b = bone->GetBufferPointer();
@@ -1196,7 +1236,7 @@ static void reconstruct(Separated& out, const MaskImage* bone, const MaskImage* 
   // Options::thick_reach_mm from the core (a crown's height).
   const float band = static_cast<float>(choice.r_used + 2.0 * std::max(max_spacing, ctx.native_max_spacing));
   const float reach = static_cast<float>(std::max<double>(band, opt.thick_reach_mm));
-  out.mand = band_and_attached(rm.region, rm.core, band, fine_scan ? reach : band, cg, lap);
+  out.mand = band_and_attached(rm.region, rm.core, band, fine_scan ? reach : band, prior, cg, lap);
   out.other.assign(out.mand.size(), 0);
   for (std::size_t i = 0; i < out.mand.size(); ++i) out.other[i] = b[i] && w[i] != 0 && !joined[w[i]];
   lap("attached parts");
@@ -1259,7 +1299,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
     out.mand = unseparated_mandible(bone.GetPointer(), opt, threshold, voxel_mm3, cg, evidence.judge.by_atlas, r.warnings);
   else
     reconstruct(out, bone.GetPointer(), dense_solid.GetPointer(), choice, search.bone_depth, hu_crop, offset, depth_cap,
-                crop_of_bone.cut, max_spacing, ctx, opt, lap);
+                crop_of_bone.cut, max_spacing, evidence.prior, ctx, opt, lap);
   out.separated = choice.mand != 0;
   r.threshold_hu = threshold;
   r.offset_hu = offset;
@@ -2012,16 +2052,9 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
   } catch (const Error&) {
     zone_mm3 = 0;  // no zone: nothing to measure the image's mask against
   }
-  const ZoneCheck c = check_against_zone(image.mask, zone_mm3, prior, fit.pose);
-  if (std::getenv("MANDISYM_DEBUG_SEG"))
-    std::fprintf(stderr, "  image separation vs atlas: %.3f in its support, %.3f of the zone's evidence\n", c.in_support, c.evidence);
-  if (zone_mm3 > 0 && c.in_support >= kImageInSupport && c.evidence >= kImageEvidenceShare) {
-    image.marker_source += " (verified by the atlas)";
-    return image;
-  }
-  const WeldedOcclusion weld = welded_occlusion(
-      ct, image.mask, [&prior](const Vec3& q) { return prior.at(q); }, fit.pose.superior(), Plane{fit.pose.t, fit.pose.lateral()},
-      fit.pose.scale, opt.dense_threshold_hu, image.offset_hu);
+  const WeldedOcclusion weld =
+      welded_occlusion(ct, [&prior](const Vec3& q) { return prior.at(q); }, fit.pose.superior(), Plane{fit.pose.t, fit.pose.lateral()},
+                       fit.pose.scale, opt.dense_threshold_hu, image.offset_hu);
   if (std::getenv("MANDISYM_DEBUG_SEG"))
     std::fprintf(stderr, "  image separation: %zu cheek-teeth columns run %.0f mm above the zone through enamel (%.0f mm2)\n",
                  weld.columns, kWeldRiseMm, weld.area_mm2);
@@ -2030,6 +2063,13 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
     if (std::optional<Result> cut =
             separate_at_occlusal_plane(ct, opt, fit, whole, weld, image.offset_hu, prior, zone_mm3, plane_cut_tried))
       return std::move(*cut);
+  const ZoneCheck c = check_against_zone(image.mask, zone_mm3, prior, fit.pose);
+  if (std::getenv("MANDISYM_DEBUG_SEG"))
+    std::fprintf(stderr, "  image separation vs atlas: %.3f in its support, %.3f of the zone's evidence\n", c.in_support, c.evidence);
+  if (zone_mm3 > 0 && c.in_support >= kImageInSupport && c.evidence >= kImageEvidenceShare) {
+    image.marker_source += " (verified by the atlas)";
+    return image;
+  }
   Result zone = segment_by_atlas(ct, opt, fit);
   zone.image_zone_dice = dice(zone.mask, image.mask);
   if (weld.welded()) zone.welded_occlusion_mm2 = weld.area_mm2, zone.occlusion_cut_refused = plane_cut_tried;

@@ -7,6 +7,11 @@
 #   sym:    teeth in occlusion, the upper crowns welded to the lower ones; separated at the
 #           occlusal plane (docs/segmentation.md, "Teeth in occlusion"; measured: landmarks
 #           <= 0.6 mm, Dice 0.980; without the cut: exit 8, Dice 0.896).
+#   open15-hyoid: the hyoid left 2 mm from the lingual symphysis of the open mouth, dropped as
+#           another bone beyond the band (measured: landmarks <= 1.2 mm, Dice 0.984; kept: Go
+#           15-16 mm off with QC pass).
+#   joint1: a 1 mm joint space bridged at 1 mm, the skull base joined through both joints and
+#           dropped (measured: landmarks <= 0.6 mm, Dice 0.980; kept: exit 8, Dice 0.895).
 # Usage: independent_phantom.sh BIN SRC WORK [CASE]
 set -euo pipefail
 BIN=$1 SRC=$2 WORK=$3 CASE=${4:-open15}

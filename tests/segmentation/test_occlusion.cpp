@@ -19,15 +19,12 @@ constexpr double kSlope = 0.15;  // contact rises 0.15 mm per mm backwards (~8.5
 
 struct Dentition {
   Volume ct;
-  Mask mask;
   // Contact height (mm, LPS z) at antero-posterior position y (LPS, posterior positive).
   static double contact_z(double y) { return 40.0 + kSlope * y; }
   explicit Dentition(bool welded) {
     ct.geom.size = {100, 60, 80};  // x: -50..49, y: 0..59, z: 0..79 mm
     ct.geom.origin = {-50, 0, 0};
     ct.hu.assign(ct.geom.voxel_count(), 40.0f);
-    mask.geom = ct.geom;
-    mask.data.assign(ct.geom.voxel_count(), 0);
     for (std::size_t k = 0; k < 80; ++k)
       for (std::size_t j = 0; j < 60; ++j)
         for (std::size_t i = 0; i < 100; ++i) {
@@ -47,7 +44,6 @@ struct Dentition {
           if (hu == 0) continue;
           const std::size_t v = ct.geom.linear(i, j, k);
           ct.hu[v] = hu;
-          mask.data[v] = 1;  // the image separation took it all
         }
   }
 };
@@ -62,7 +58,7 @@ const Vec3 kSuperior{0, 0, 1}, kAnterior{0, -1, 0};
 
 TEST(Occlusion, FindsWeldedCheekTeethAndTheirContactPlane) {
   const Dentition d(true);
-  const WeldedOcclusion w = welded_occlusion(d.ct, d.mask, zone_p, kSuperior, kMidline, 1.0, 1000, 0);
+  const WeldedOcclusion w = welded_occlusion(d.ct, zone_p, kSuperior, kMidline, 1.0, 1000, 0);
   // Columns 18-30 mm from the midline on both sides, between 15 and 35 mm: 2 x 13 x 41.
   EXPECT_EQ(w.columns, 2u * 13u * 41u);
   EXPECT_TRUE(w.welded());
@@ -77,7 +73,7 @@ TEST(Occlusion, FindsWeldedCheekTeethAndTheirContactPlane) {
 
 TEST(Occlusion, TeethApartAreNotWelded) {
   const Dentition d(false);
-  const WeldedOcclusion w = welded_occlusion(d.ct, d.mask, zone_p, kSuperior, kMidline, 1.0, 1000, 0);
+  const WeldedOcclusion w = welded_occlusion(d.ct, zone_p, kSuperior, kMidline, 1.0, 1000, 0);
   EXPECT_EQ(w.columns, 0u);
   EXPECT_FALSE(w.welded());
   EXPECT_FALSE(fit_occlusal_plane(w).found);
@@ -85,7 +81,7 @@ TEST(Occlusion, TeethApartAreNotWelded) {
 
 TEST(Occlusion, TheCutPartsUpperFromLowerTeeth) {
   Dentition d(true);
-  const WeldedOcclusion w = welded_occlusion(d.ct, d.mask, zone_p, kSuperior, kMidline, 1.0, 1000, 0);
+  const WeldedOcclusion w = welded_occlusion(d.ct, zone_p, kSuperior, kMidline, 1.0, 1000, 0);
   const OcclusalPlane p = fit_occlusal_plane(w);
   ASSERT_TRUE(p.found);
   EXPECT_GT(cut_at_occlusal_plane(d.ct, p, w, kMidline, kAnterior, 0), 0u);
