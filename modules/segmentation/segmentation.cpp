@@ -633,6 +633,21 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
   return joined;
 }
 
+// Another bone touching the mandible (docs/segmentation.md, "Other bones
+// attached beyond the band"): a thick part kept beyond the band that lies
+// more than a third (kOtherBoneOutsideSupport) where no training mandible
+// reaches (p < kAtlasSupportP, the placed atlas) and is the size of a bone
+// (kOtherBoneMinMm3) is dropped. Parts of the mandible measured beyond the
+// band lie at most 0.10 outside (crowns); other bones 0.23-0.74 (a hyoid
+// 0.74, a skull joined through teeth or joints 0.47-0.63). The hyoid is the
+// bone that comes to touch the lower border (an open mouth, a flexed neck):
+// its body alone is ~25 x 10 x 10 mm (Gray's Anatomy, 42nd ed.), about
+// 2 cm3. A lump smaller than an eighth of that is the mandible's own surface
+// where the atlas's support ends (random phantom anatomies: 20-40 mm3 at the
+// posterior border of rami wider than any training mandible's), and is kept.
+constexpr double kOtherBoneOutsideSupport = 1.0 / 3.0;
+constexpr double kOtherBoneMinMm3 = 250.0;
+
 // "A crown follows its root" (docs/segmentation.md, step 5): with the teeth
 // in occlusion a lower crown is welded to the upper one as widely as it hangs
 // on its root, and the watershed can give it to the maxilla. Through bone, it
@@ -643,10 +658,15 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
 // of 1/8 of the finest spacing); connected pieces of other regions that fall
 // to the mandible's core and hold a voxel at least min_depth_mm deep (a
 // crown, not a thin plate such as the roof of a glenoid fossa) join the
-// mandible. Never the reverse. Returns the voxels moved.
+// mandible, unless, with the atlas placed (prior: its probability at every
+// bone voxel; empty without it), the piece is another bone by the rule of
+// drop_other_bones (more than kOtherBoneOutsideSupport of it outside the
+// support): a crown lies within it, the skull base behind a condyle bridged
+// to it does not. Never the reverse. Returns the voxels moved.
 static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::PixelType* bone, const LabelImage::PixelType* markers,
                                     const std::vector<bool>& source, unsigned mand, const std::vector<float>& depth,
-                                    const Geometry& g, const FaceNeighbours& neighbours, float min_depth_mm, double max_mm) {
+                                    const std::vector<float>& prior, const Geometry& g, const FaceNeighbours& neighbours,
+                                    float min_depth_mm, double max_mm) {
   const std::size_t n = g.voxel_count();
   if (n > std::numeric_limits<std::uint32_t>::max()) return 0;  // 32-bit queues (a crop is far smaller)
   // Only where the mandible's region touches another region's bone.
@@ -688,16 +708,20 @@ static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::P
     piece.assign(1, static_cast<std::uint32_t>(s));
     cand[s] = 2;
     float deepest = 0;
+    std::size_t outside = 0;
     for (std::size_t h = 0; h < piece.size(); ++h) {
       deepest = std::max(deepest, depth[piece[h]]);
+      outside += !prior.empty() && prior[piece[h]] < kAtlasSupportP;
       neighbours.each(piece[h], [&](std::size_t q, int) {
         if (cand[q] == 1) cand[q] = 2, piece.push_back(static_cast<std::uint32_t>(q));
       });
     }
+    const bool other_bone = static_cast<double>(outside) > kOtherBoneOutsideSupport * static_cast<double>(piece.size());
+    const bool joins = deepest >= min_depth_mm && !other_bone;
     if (std::getenv("MANDISYM_DEBUG_SEG") && piece.size() > 20)
-      std::fprintf(stderr, "  nearer the mandible's core: %zu voxels, deepest %.1f mm%s\n", piece.size(), deepest,
-                   deepest >= min_depth_mm ? " -> mandible" : "");
-    if (deepest < min_depth_mm) continue;
+      std::fprintf(stderr, "  nearer the mandible's core: %zu voxels, deepest %.1f mm, %.2f outside the atlas's support%s\n",
+                   piece.size(), deepest, static_cast<double>(outside) / static_cast<double>(piece.size()), joins ? " -> mandible" : "");
+    if (!joins) continue;
     for (const std::uint32_t c : piece) w[c] = mand;
     moved += piece.size();
   }
@@ -853,18 +877,6 @@ static MarkerChoice deepest_mandible_core(const std::vector<float>& sd, const ch
   return choice;
 }
 
-// Another bone touching the mandible (docs/segmentation.md, "Other bones
-// attached beyond the band"): a thick part kept beyond the band that lies
-// mostly (kOtherBoneOutsideSupport of its voxels) where no training
-// mandible reaches (p < kAtlasSupportP, the placed atlas) and is the size of
-// a bone (kOtherBoneMinMm3) is dropped. The hyoid is the bone that comes to
-// touch the lower border (an open mouth, a flexed neck): its body alone is
-// ~25 x 10 x 10 mm (Gray's Anatomy, 42nd ed.), about 2 cm3. A lump smaller
-// than an eighth of that is the mandible's own surface where the atlas's
-// support ends (random phantom anatomies: 20-40 mm3 at the posterior
-// border of rami wider than any training mandible's), and is kept.
-constexpr double kOtherBoneOutsideSupport = 0.5;
-constexpr double kOtherBoneMinMm3 = 250.0;
 
 // Drops from kept (the band and its thick attached parts) every part beyond
 // the band (nd2 > band2: squared mm to the core) that is another bone by
@@ -882,9 +894,9 @@ static void drop_other_bones(std::vector<std::uint8_t>& kept, const std::vector<
   for (std::size_t l = 1; l <= n; ++l) {
     const double mm3 = static_cast<double>(voxels[l]) * cg.voxel_volume_mm3();
     other[l] = mm3 >= kOtherBoneMinMm3 && outside[l] > kOtherBoneOutsideSupport * static_cast<double>(voxels[l]);
-    if (debug && other[l])
-      std::fprintf(stderr, "  another bone attached beyond the band: %.2f cm3, %.2f outside the atlas's support (dropped)\n",
-                   mm3 / 1000, static_cast<double>(outside[l]) / static_cast<double>(voxels[l]));
+    if (debug && mm3 >= kOtherBoneMinMm3)
+      std::fprintf(stderr, "  part attached beyond the band: %.2f cm3, %.2f outside the atlas's support (%s)\n", mm3 / 1000,
+                   static_cast<double>(outside[l]) / static_cast<double>(voxels[l]), other[l] ? "another bone: dropped" : "kept");
   }
   for (std::size_t i = 0; i < kept.size(); ++i)
     if (lab[i] && other[lab[i]]) kept[i] = 0;
@@ -1158,8 +1170,9 @@ static std::vector<std::uint8_t> unseparated_mandible(const MaskImage* bone, con
 // sources are the mandible's core and the cores of regions too large to be
 // fragments (the fragment rule's limit). Returns the voxels moved.
 static std::size_t crowns_follow_roots(std::vector<unsigned>& wsl, const std::uint8_t* bone, const unsigned* markers,
-                                       const MarkerChoice& choice, const std::vector<float>& bone_depth, const Geometry& cg,
-                                       const FaceNeighbours& neighbours, const Options& opt, std::size_t max_fragment_voxels) {
+                                       const MarkerChoice& choice, const std::vector<float>& bone_depth,
+                                       const std::vector<float>& prior, const Geometry& cg, const FaceNeighbours& neighbours,
+                                       const Options& opt, std::size_t max_fragment_voxels) {
   const unsigned n_markers = choice.n, mand = choice.mand;
   std::vector<std::size_t> region_size(n_markers + 1, 0);
   for (std::size_t i = 0; i < cg.voxel_count(); ++i)
@@ -1167,7 +1180,7 @@ static std::size_t crowns_follow_roots(std::vector<unsigned>& wsl, const std::ui
   const std::size_t limit = fragment_limit(region_size[mand], max_fragment_voxels, opt.fragment_merge_fraction);
   std::vector<bool> source(n_markers + 1, false);
   for (unsigned l = 1; l <= n_markers; ++l) source[l] = l == mand || region_size[l] > limit;
-  return reclaim_by_roots(wsl, bone, markers, source, mand, bone_depth, cg, neighbours,
+  return reclaim_by_roots(wsl, bone, markers, source, mand, bone_depth, prior, cg, neighbours,
                           static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
 }
 
@@ -1222,7 +1235,7 @@ static void reconstruct(Separated& out, const MaskImage* bone, const MaskImage* 
   const bool fine_scan = ctx.native_max_spacing <= opt.max_working_spacing_mm;
   const auto max_fragment_voxels = static_cast<std::size_t>(opt.fragment_merge_cm3 * 1000.0 / voxel_mm3);
   if (fine_scan && opt.crown_min_depth_mm > 0) {
-    const std::size_t moved = crowns_follow_roots(wsl, b, m, choice, bone_depth, cg, land.neighbours, opt, max_fragment_voxels);
+    const std::size_t moved = crowns_follow_roots(wsl, b, m, choice, bone_depth, prior, cg, land.neighbours, opt, max_fragment_voxels);
     if (lap.on()) std::fprintf(stderr, "  %zu voxels nearer the mandible's core joined it\n", moved);
     lap("crowns by their roots");
   }
