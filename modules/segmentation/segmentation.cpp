@@ -83,6 +83,13 @@ inline float landscape_level(float depth_mm, float hu, float hu0) {
 // Longest path through bone (mm) the crowns-by-their-roots partition follows:
 // a molar's root and crown together are ~20 mm.
 constexpr double kRootReachMm = 25.0;
+// Deepest a crown's bone can lie below its surface (mm): half the widest
+// crown, a first molar's ~11 mm bucco-lingual diameter (Wheeler's Dental
+// Anatomy); an upper and a lower crown welded together are no wider. A piece
+// deeper than this is a block of other bone (the skull base by a condyle
+// bridged to it: 6.2-13.6 mm on resampled phantoms of another design), not a
+// crown (2.3-4.3 mm on the project's phantoms in occlusion).
+constexpr float kCrownMaxDepthMm = 5.5f;
 
 // MANDISYM_DEBUG_SEG=1: time of each step on stderr (profiling aid).
 struct SegLap : DebugLap {
@@ -647,6 +654,15 @@ static std::vector<bool> mandible_fragments(const LabelImage::PixelType* w, cons
 // posterior border of rami wider than any training mandible's), and is kept.
 constexpr double kOtherBoneOutsideSupport = 1.0 / 3.0;
 constexpr double kOtherBoneMinMm3 = 250.0;
+// Parts are taken beyond the band but never nearer the dense core than this
+// (mm): the mandible's cortex is 2-3 mm thick (body and inferior border,
+// e.g. Katranji et al. 2007, J Oral Maxillofac Surg 65:1546), so bone within
+// it of the core is the mandible's own. A fixed distance keeps the parts the
+// same at every voxel size: with the band alone (two voxels) at 0.7 mm the
+// crowns, the lingual surface and a hyoid touching it were one part (12 cm3,
+// 0.15 outside the support, kept; at 3 mm the hyoid is a part of its own,
+// 0.86 outside).
+constexpr float kOtherBoneFromCoreMm = 3.0f;
 
 // "A crown follows its root" (docs/segmentation.md, step 5): with the teeth
 // in occlusion a lower crown is welded to the upper one as widely as it hangs
@@ -657,8 +673,9 @@ constexpr double kOtherBoneMinMm3 = 250.0;
 // fragments (6-connected paths in mm, computed to max_mm, on a bucket queue
 // of 1/8 of the finest spacing); connected pieces of other regions that fall
 // to the mandible's core and hold a voxel at least min_depth_mm deep (a
-// crown, not a thin plate such as the roof of a glenoid fossa) join the
-// mandible, unless, with the atlas placed (prior: its probability at every
+// crown, not a thin plate such as the roof of a glenoid fossa) and none
+// deeper than max_depth_mm (a crown's half width: deeper is a block of other
+// bone) join the mandible, unless, with the atlas placed (prior: its probability at every
 // bone voxel; empty without it), the piece is another bone by the rule of
 // drop_other_bones (more than kOtherBoneOutsideSupport of it outside the
 // support): a crown lies within it, the skull base behind a condyle bridged
@@ -666,7 +683,7 @@ constexpr double kOtherBoneMinMm3 = 250.0;
 static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::PixelType* bone, const LabelImage::PixelType* markers,
                                     const std::vector<bool>& source, unsigned mand, const std::vector<float>& depth,
                                     const std::vector<float>& prior, const Geometry& g, const FaceNeighbours& neighbours,
-                                    float min_depth_mm, double max_mm) {
+                                    float min_depth_mm, float max_depth_mm, double max_mm) {
   const std::size_t n = g.voxel_count();
   if (n > std::numeric_limits<std::uint32_t>::max()) return 0;  // 32-bit queues (a crop is far smaller)
   // Only where the mandible's region touches another region's bone.
@@ -717,7 +734,7 @@ static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::P
       });
     }
     const bool other_bone = static_cast<double>(outside) > kOtherBoneOutsideSupport * static_cast<double>(piece.size());
-    const bool joins = deepest >= min_depth_mm && !other_bone;
+    const bool joins = deepest >= min_depth_mm && deepest <= max_depth_mm && !other_bone;
     if (std::getenv("MANDISYM_DEBUG_SEG") && piece.size() > 20)
       std::fprintf(stderr, "  nearer the mandible's core: %zu voxels, deepest %.1f mm, %.2f outside the atlas's support%s\n",
                    piece.size(), deepest, static_cast<double>(outside) / static_cast<double>(piece.size()), joins ? " -> mandible" : "");
@@ -879,12 +896,12 @@ static MarkerChoice deepest_mandible_core(const std::vector<float>& sd, const ch
 
 
 // Drops from kept (the band and its thick attached parts) every part beyond
-// the band (nd2 > band2: squared mm to the core) that is another bone by
-// the rule above; prior: the placed atlas's probability at every bone voxel.
-static void drop_other_bones(std::vector<std::uint8_t>& kept, const std::vector<float>& nd2, float band2,
+// from2 (nd2 > from2: squared mm to the core) that is another bone by the
+// rule above; prior: the placed atlas's probability at every bone voxel.
+static void drop_other_bones(std::vector<std::uint8_t>& kept, const std::vector<float>& nd2, float from2,
                              const std::vector<float>& prior, const Geometry& cg, bool debug) {
   std::vector<std::uint8_t> beyond(kept.size(), 0);
-  for (std::size_t i = 0; i < kept.size(); ++i) beyond[i] = kept[i] && nd2[i] > band2;
+  for (std::size_t i = 0; i < kept.size(); ++i) beyond[i] = kept[i] && nd2[i] > from2;
   std::vector<std::uint32_t> lab(kept.size());
   const std::size_t n = label_components(beyond.data(), cg.size, false, 0, lab.data()).count;
   std::vector<std::size_t> voxels(n + 1, 0), outside(n + 1, 0);
@@ -938,7 +955,8 @@ static std::vector<std::uint8_t> band_and_attached(const std::vector<std::uint8_
     if (cl[i] && nd2[i] <= band2) attached[cl[i]] = true;
   std::vector<std::uint8_t> kept(cg.voxel_count(), 0);
   for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = cl[i] && attached[cl[i]];
-  if (!prior.empty() && reach > band) drop_other_bones(kept, nd2, band2, prior, cg, lap.on());
+  const float other_from = std::max(band, kOtherBoneFromCoreMm);
+  if (!prior.empty() && reach > band) drop_other_bones(kept, nd2, other_from * other_from, prior, cg, lap.on());
   return kept;
 }
 
@@ -1181,7 +1199,7 @@ static std::size_t crowns_follow_roots(std::vector<unsigned>& wsl, const std::ui
   std::vector<bool> source(n_markers + 1, false);
   for (unsigned l = 1; l <= n_markers; ++l) source[l] = l == mand || region_size[l] > limit;
   return reclaim_by_roots(wsl, bone, markers, source, mand, bone_depth, prior, cg, neighbours,
-                          static_cast<float>(opt.crown_min_depth_mm), kRootReachMm);
+                          static_cast<float>(opt.crown_min_depth_mm), kCrownMaxDepthMm, kRootReachMm);
 }
 
 // Step 5, "fragments join the mandible" (mandible_fragments), on scans that
@@ -1301,7 +1319,7 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
   // Depths matter up to the deepest core, the landscape's cap and the crown
   // step's depth: the transforms need look no deeper (exact up to it, deeper beyond).
-  const float depth_cap = std::max({static_cast<float>(r_max), kLandscapeDepthMm, static_cast<float>(opt.crown_min_depth_mm)});
+  const float depth_cap = std::max({static_cast<float>(r_max), kLandscapeDepthMm, kCrownMaxDepthMm});
   MarkerSearch search = markers_by_core_depth(dense_solid, bone, rsep, r_max, depth_cap, cg, evidence, in_located, lap);
   const MarkerChoice& choice = search.choice;
   if (choice.mand) r.marker_source = choice.source;
