@@ -1846,17 +1846,12 @@ static double calibration_offset(const Volume& ct, std::vector<std::string>& war
 // the mandible's marker for the zone's watershed.
 constexpr double kZoneMarkerP = 0.5;
 
-// Voxels no larger than this sample the temporomandibular joint's space
-// (adult superior joint space 2.5 mm, Ikeda & Kawamura 2009: at least 1.7
-// samples across it), so the watershed can cut the zone there; coarser scans
-// keep the zone as it is (openkbp-train folds 1-4 at ~4 mm: mean Dice 0.866
-// either way, worst 0.733 -> 0.719 with the cut). Measured at 1.5 mm (the
-// bound was 1.25): the Visible Human head Co_L / Co_R 2.7 / 4.4 -> 1.0 / 2.0
-// mm from its reference, the phantom family of another design Co 3.8-5.6 ->
-// 0.3-2.1 mm (7 cases; its 1 mm joint space, unresolved, 3.8-4.1 ->
-// 5.4-5.9). At 2 mm the cut took Co_L 8.5 mm off on the Visible Human head
-// (EndToEnd.RealHeadAtTwoMillimetresKeepsItsRami).
-constexpr double kJointResolvingSpacingMm = 1.5;
+// Voxels no larger than this resolve the temporomandibular joint's space
+// (adult superior / anterior joint space 2.5 / 1.3 mm, Ikeda & Kawamura
+// 2009: two samples across the narrower gaps), so the watershed can cut the
+// zone there; coarser scans keep the zone as it is (openkbp-train folds 1-4
+// at ~4 mm: mean Dice 0.866 either way, worst 0.733 -> 0.719 with the cut).
+constexpr double kJointResolvingSpacingMm = 1.25;
 
 // The zone cut where the image separates it from other bone
 // (docs/segmentation.md, "the atlas's zone", step 4): the separation's
