@@ -664,6 +664,12 @@ constexpr double kOtherBoneMinMm3 = 250.0;
 // 0.86 outside).
 constexpr float kOtherBoneFromCoreMm = 3.0f;
 
+// The support half of that rule: more than kOtherBoneOutsideSupport of a
+// piece's voxels lie outside the atlas's support.
+inline bool mostly_outside_support(std::size_t outside, std::size_t voxels) {
+  return static_cast<double>(outside) > kOtherBoneOutsideSupport * static_cast<double>(voxels);
+}
+
 // "A crown follows its root" (docs/segmentation.md, step 5): with the teeth
 // in occlusion a lower crown is welded to the upper one as widely as it hangs
 // on its root, and the watershed can give it to the maxilla. Through bone, it
@@ -675,11 +681,11 @@ constexpr float kOtherBoneFromCoreMm = 3.0f;
 // to the mandible's core and hold a voxel at least min_depth_mm deep (a
 // crown, not a thin plate such as the roof of a glenoid fossa) and none
 // deeper than max_depth_mm (a crown's half width: deeper is a block of other
-// bone) join the mandible, unless, with the atlas placed (prior: its probability at every
-// bone voxel; empty without it), the piece is another bone by the rule of
-// drop_other_bones (more than kOtherBoneOutsideSupport of it outside the
-// support): a crown lies within it, the skull base behind a condyle bridged
-// to it does not. Never the reverse. Returns the voxels moved.
+// bone) join the mandible, unless, with the atlas placed (prior: its
+// probability at every bone voxel; empty without it), the piece lies mostly
+// outside its support (mostly_outside_support): a crown lies within it, the
+// skull base behind a condyle bridged to it does not. Never the reverse.
+// Returns the voxels moved.
 static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::PixelType* bone, const LabelImage::PixelType* markers,
                                     const std::vector<bool>& source, unsigned mand, const std::vector<float>& depth,
                                     const std::vector<float>& prior, const Geometry& g, const FaceNeighbours& neighbours,
@@ -733,8 +739,7 @@ static std::size_t reclaim_by_roots(std::vector<unsigned>& w, const MaskImage::P
         if (cand[q] == 1) cand[q] = 2, piece.push_back(static_cast<std::uint32_t>(q));
       });
     }
-    const bool other_bone = static_cast<double>(outside) > kOtherBoneOutsideSupport * static_cast<double>(piece.size());
-    const bool joins = deepest >= min_depth_mm && deepest <= max_depth_mm && !other_bone;
+    const bool joins = deepest >= min_depth_mm && deepest <= max_depth_mm && !mostly_outside_support(outside, piece.size());
     if (std::getenv("MANDISYM_DEBUG_SEG") && piece.size() > 20)
       std::fprintf(stderr, "  nearer the mandible's core: %zu voxels, deepest %.1f mm, %.2f outside the atlas's support%s\n",
                    piece.size(), deepest, static_cast<double>(outside) / static_cast<double>(piece.size()), joins ? " -> mandible" : "");
@@ -894,7 +899,6 @@ static MarkerChoice deepest_mandible_core(const std::vector<float>& sd, const ch
   return choice;
 }
 
-
 // Drops from kept (the band and its thick attached parts) every part beyond
 // from2 (nd2 > from2: squared mm to the core) that is another bone by the
 // rule above; prior: the placed atlas's probability at every bone voxel.
@@ -910,7 +914,7 @@ static void drop_other_bones(std::vector<std::uint8_t>& kept, const std::vector<
   std::vector<std::uint8_t> other(n + 1, 0);
   for (std::size_t l = 1; l <= n; ++l) {
     const double mm3 = static_cast<double>(voxels[l]) * cg.voxel_volume_mm3();
-    other[l] = mm3 >= kOtherBoneMinMm3 && outside[l] > kOtherBoneOutsideSupport * static_cast<double>(voxels[l]);
+    other[l] = mm3 >= kOtherBoneMinMm3 && mostly_outside_support(outside[l], voxels[l]);
     if (debug && mm3 >= kOtherBoneMinMm3)
       std::fprintf(stderr, "  part attached beyond the band: %.2f cm3, %.2f outside the atlas's support (%s)\n", mm3 / 1000,
                    static_cast<double>(outside[l]) / static_cast<double>(voxels[l]), other[l] ? "another bone: dropped" : "kept");
@@ -1318,8 +1322,10 @@ static Separated separate(const Volume& ct, const Options& opt, const GridContex
   lap("dense solid");
   const double r_max = std::max(rsep, 3.0) + 1e-9;  // the deepest core tried
   // Depths matter up to the deepest core, the landscape's cap and the crown
-  // step's depth: the transforms need look no deeper (exact up to it, deeper beyond).
-  const float depth_cap = std::max({static_cast<float>(r_max), kLandscapeDepthMm, kCrownMaxDepthMm});
+  // step's depths (least and most): the transforms need look no deeper
+  // (exact up to it, deeper beyond).
+  const float depth_cap =
+      std::max({static_cast<float>(r_max), kLandscapeDepthMm, static_cast<float>(opt.crown_min_depth_mm), kCrownMaxDepthMm});
   MarkerSearch search = markers_by_core_depth(dense_solid, bone, rsep, r_max, depth_cap, cg, evidence, in_located, lap);
   const MarkerChoice& choice = search.choice;
   if (choice.mand) r.marker_source = choice.source;
@@ -2021,9 +2027,9 @@ constexpr double kImageInSupport = 0.97;
 constexpr double kImageEvidenceShare = 0.6;
 constexpr double kZoneCheckSpacingMm = 1.0;
 
-// Teeth in occlusion (docs/segmentation.md, "Teeth in occlusion"): the
-// atlas refused the image's mask and upper teeth are welded to the lower ones
-// in it. The weld is cut at the occlusal contact plane (fit_occlusal_plane,
+// Teeth in occlusion (docs/segmentation.md, "Teeth in occlusion"): upper
+// teeth are welded to the lower ones in the scan (welded_occlusion). The weld
+// is cut at the occlusal contact plane (fit_occlusal_plane,
 // cut_at_occlusal_plane), the image separation runs again on the cut scan,
 // and its mask is taken when the atlas verifies it as it would the first.
 // tried: set when the cut was made (a plane was found).
@@ -2083,9 +2089,11 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
   } catch (const Error&) {
     zone_mm3 = 0;  // no zone: nothing to measure the image's mask against
   }
+  SegLap lap;
   const WeldedOcclusion weld =
       welded_occlusion(ct, [&prior](const Vec3& q) { return prior.at(q); }, fit.pose.superior(), Plane{fit.pose.t, fit.pose.lateral()},
                        fit.pose.scale, opt.dense_threshold_hu, image.offset_hu);
+  lap("occlusion weld search");
   if (std::getenv("MANDISYM_DEBUG_SEG"))
     std::fprintf(stderr, "  image separation: %zu cheek-teeth columns run %.0f mm above the zone through enamel (%.0f mm2)\n",
                  weld.columns, kWeldRiseMm, weld.area_mm2);

@@ -78,8 +78,8 @@ struct Result {
   // separations_agree); -1 when they were not compared.
   double image_zone_dice = -1;
   // When image_zone_dice was measured: the area (mm2) of the cheek-teeth
-  // columns where the image separation's mask runs in dense bone through
-  // enamel from the atlas's zone to at least kWeldRiseMm above it, i.e. upper
+  // columns where the scan runs in dense bone through enamel from the
+  // atlas's zone to at least kWeldRiseMm above it, i.e. upper
   // teeth welded to the lower ones (occlusion.h), when it covers at least a
   // molar's occlusal table; else 0. The quality gate names it (docs/qc.md).
   double welded_occlusion_mm2 = 0;
