@@ -211,6 +211,7 @@ segmentation::Result segment_stage(const Volume& ct, const RunSettings& rs, cons
   S.seg_marker_source = seg.marker_source;
   S.atlas = seg.atlas;
   S.atlas_agreement = seg.atlas_agreement;
+  S.atlas_halves_balance = seg.atlas_halves_balance;
   S.image_zone_dice = seg.image_zone_dice;
   S.welded_occlusion_mm2 = seg.welded_occlusion_mm2;
   S.occlusion_cut_refused = seg.occlusion_cut_refused;

@@ -91,6 +91,28 @@ constexpr double kMaxLandmarkOffSurfaceMm = 2.0;
 // a real patient can have.
 constexpr double kMaxProcessMismatchMm = 20.0;
 
+// The U shape: each half of the mandible reaches out from the mid-sagittal
+// plane at least as far as a bilateral landmark must lie from it
+// (kMinSideOffsetMm: half the narrowest bigonial width, ~70 mm in children,
+// less a 15 mm shift of the midline in marked asymmetry). A whole mandible's
+// halves reach to the condyles' and gonia's lateral surfaces, ~45-65 mm in
+// adults (bicondylar width ~90-125 mm, lateral poles beyond); a mandible
+// resected behind the symphysis on one side (hemimandibulectomy) or one whose
+// side the segmentation lost reaches only the few centimetres of body that
+// cross the midline.
+constexpr double kMinSideReachMm = kMinSideOffsetMm;
+// The two halves' atlas evidence (segmentation::Result::atlas_halves_balance:
+// the mask's sum of the atlas's probability on the weaker side of the atlas's
+// mid-sagittal plane over the stronger's). In hemifacial microsomia the ramus
+// is reduced far more than the body (Chen et al. 2023, Front Pediatr
+// 11:1157607, 210 unilateral cases), so even a half without a ramus keeps its
+// body, the larger share of a half; below half of the other side a half lacks
+// part of its body too: resected, or not segmented. openkbp-train (111
+// whole or scan-cut mandibles): 0.81-1.00 (docs/qc.md); pt_47, one of whose
+// halves lacks its ramus and posterior body in the clinical contour as in the
+// mask, 0.34.
+constexpr double kMinHalvesBalance = 0.5;
+
 constexpr double kPi = 3.14159265358979323846;
 
 double angle_deg(const Vec3& a, const Vec3& b) {
@@ -168,7 +190,7 @@ void atlas_checks(const RunSummary& s, CheckList& out) {
           "inter-observer Dice of mandible contours on CT ~0.9 (Brouwer et al. 2012)", true, separations_message(s));
 }
 
-// 2. Anatomical plausibility of the volume and of the landmarks' distances
+// 3. Anatomical plausibility of the volume and of the landmarks' distances
 //    and angles (adult and child anthropometry, bounds well outside).
 void shape_checks(const RunSummary& s, CheckList& out) {
   out.add("mandible_volume_cm3", s.seg_volume_mm3 / 1000.0, kVolumeCm3, "cm3",
@@ -212,7 +234,7 @@ void shape_checks(const RunSummary& s, CheckList& out) {
           "the angle condylion-gonion-menton is not a mandible's: landmarks on the wrong structure");
 }
 
-// 3. Agreement of the symmetry plane with independent estimates: the sides of
+// 4. Agreement of the symmetry plane with independent estimates: the sides of
 //    the bilateral landmarks, the atlas's pose and the cranium's mirror plane.
 void symmetry_checks(const RunSummary& s, CheckList& out) {
   const Plane& plane = s.reference.plane;  // normal to the patient's left
@@ -252,15 +274,71 @@ void symmetry_checks(const RunSummary& s, CheckList& out) {
           "the mandible's symmetry plane and the cranium's disagree: one of the two fits is doubtful");
 }
 
+// The mid-sagittal plane the U shape is measured against: the atlas's (its
+// frame is mirror-symmetric about x = 0, which the pose carries to t), which
+// does not depend on the mandible's shape; else the mandible's symmetry plane.
+Plane midsagittal_plane(const RunSummary& s) {
+  if (s.segmentation_method == "auto" && s.atlas.found) return Plane{s.atlas.pose.t, s.atlas.pose.lateral()};
+  return s.reference.plane;
+}
+
+// 2. The U shape: two halves reaching out from the mid-sagittal plane, joined
+//    across it by the symphysis (a surface triangle straddling the plane),
+//    each holding its share of the atlas's mandible.
+void u_shape_checks(const RunSummary& s, CheckList& out) {
+  const std::vector<Vec3>& V = s.surface.vertices;
+  double reach = kNaN, crossing = kNaN;
+  const Plane m = midsagittal_plane(s);
+  if (!V.empty() && norm(m.normal) > 0) {
+    const Plane pl{m.point, normalized(m.normal)};
+    std::vector<double> d(V.size());
+    double left = 0, right = 0;
+    for (std::size_t i = 0; i < V.size(); ++i) {
+      d[i] = pl.signed_distance(V[i]);
+      left = std::max(left, d[i]), right = std::max(right, -d[i]);
+    }
+    reach = std::min(left, right);
+    crossing = 0;
+    for (const auto& f : s.surface.faces) {
+      const double lo = std::min({d[f[0]], d[f[1]], d[f[2]]}), hi = std::max({d[f[0]], d[f[1]], d[f[2]]});
+      if (lo <= 0 && hi >= 0) {
+        crossing = 1;
+        break;
+      }
+    }
+  }
+  const double balance_range[2] = {kMinHalvesBalance, 1.0};
+  const bool atlas = s.segmentation_method == "auto" && s.atlas.found && s.atlas_halves_balance >= 0;
+  out.add("halves_balance", atlas ? s.atlas_halves_balance : kNaN, balance_range, "",
+          "a half without its ramus (hemifacial microsomia) keeps its body, the larger share of a half (Chen et al. 2023); "
+          "openkbp-train's whole mandibles 0.81-1.00",
+          true,
+          "one half of the mandible holds far less bone than the other where the atlas expects it: part of a half is "
+          "missing (resected) or not segmented, so the two sides cannot be compared");
+  const double reach_range[2] = {kMinSideReachMm, kInf};
+  out.add("side_reach_mm", reach, reach_range, "mm",
+          "each half reaches out from the mid-sagittal plane at least half the narrowest bigonial width (~70 mm, "
+          "children) less a 15 mm shift of the midline; whole adult halves reach ~45-65 mm",
+          true,
+          "one half of the mandible is missing: resected (hemimandibulectomy) or not segmented; there is no other side to "
+          "compare with");
+  const double crossing_range[2] = {1, 1};
+  out.add("symphysis_at_midline", crossing, crossing_range, "",
+          "a mandible is one bone across the mid-sagittal plane (the symphysis)", true,
+          "no bone crosses the mid-sagittal plane: the symphysis is missing (resected) or not segmented, so the mandible "
+          "is in two pieces");
+}
+
 }  // namespace
 
 Qc evaluate_qc(const RunSummary& s) {
   Qc q;
   CheckList out{q};
   atlas_checks(s, out);
+  u_shape_checks(s, out);  // before the landmarks' checks: a missing half explains their failures
   shape_checks(s, out);
   symmetry_checks(s, out);
-  // 4. Completeness (warnings).
+  // 5. Completeness (warnings).
   int missing = 0;
   for (const std::string& n : landmark_names()) missing += !s.landmarks.landmarks.has(n);
   const double none[2] = {0, 0};

@@ -34,6 +34,7 @@ struct RunSummary {
   // fitted) and the mask's agreement with it (-1: not computed).
   atlas::Fit atlas;
   double atlas_agreement = -1;
+  double atlas_halves_balance = -1;  // segmentation::Result::atlas_halves_balance
   double image_zone_dice = -1;  // segmentation::Result::image_zone_dice
   double welded_occlusion_mm2 = 0;  // segmentation::Result::welded_occlusion_mm2
   bool occlusion_cut_refused = false;  // segmentation::Result::occlusion_cut_refused

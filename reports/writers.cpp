@@ -116,6 +116,7 @@ Value atlas_json(const RunSummary& s) {
   at["mirrored_ncc"] = f.mirrored_ncc;
   at["coverage"] = f.coverage;
   at["agreement"] = s.atlas_agreement >= 0 ? Value(s.atlas_agreement) : Value();
+  at["halves_balance"] = s.atlas_halves_balance >= 0 ? Value(s.atlas_halves_balance) : Value();
   at["centre_lps_mm"] = json_numbers(f.pose.t);
   at["scale"] = f.pose.scale;
   at["pitch_deg"] = f.pose.pitch * kDegPerRad;

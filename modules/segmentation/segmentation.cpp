@@ -1927,28 +1927,32 @@ static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas
 
 // Sums over a mask's voxels, in one pass over its bounding box (the placed
 // fields are read only there; nothing of the grid's size is allocated): the
-// voxels, the placed atlas's mandible probability, and how many lie where
-// `grown` (when given) reads at least 0.5.
+// voxels, the placed atlas's mandible probability, how many lie where
+// `grown` (when given) reads at least 0.5, and the probability on the
+// positive side of `midline` (when given).
 struct MaskSums {
-  double n = 0, p = 0, in_grown = 0;
+  double n = 0, p = 0, in_grown = 0, p_plus = 0;
 };
 
-static MaskSums sums_over(const Mask& m, const atlas::MandiblePrior& prior, const atlas::MandiblePrior* grown) {
+static MaskSums sums_over(const Mask& m, const atlas::MandiblePrior& prior, const atlas::MandiblePrior* grown,
+                          const Plane* midline = nullptr) {
   const Geometry& g = m.geom;
   const Box b = bounding_box(m.data.data(), g.size, 0);
-  double n = 0, p = 0, in_grown = 0;
+  double n = 0, p = 0, in_grown = 0, p_plus = 0;
   const long k0 = static_cast<long>(b.lo[2]), k1 = static_cast<long>(b.lo[2] + b.size[2]);
-#pragma omp parallel for schedule(static) reduction(+ : n, p, in_grown)
+#pragma omp parallel for schedule(static) reduction(+ : n, p, in_grown, p_plus)
   for (long k = k0; k < k1; ++k)
     for (std::size_t j = b.lo[1]; j < b.lo[1] + b.size[1]; ++j)
       for (std::size_t i = b.lo[0]; i < b.lo[0] + b.size[0]; ++i) {
         if (!m.data[g.linear(i, j, static_cast<std::size_t>(k))]) continue;
         const Vec3 q = g.index_to_lps(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k));
+        const double pq = prior.at(q);
         n += 1;
-        p += prior.at(q);
+        p += pq;
         if (grown) in_grown += grown->at(q) >= 0.5;
+        if (midline && midline->signed_distance(q) > 0) p_plus += pq;
       }
-  return {n, p, in_grown};
+  return {n, p, in_grown, p_plus};
 }
 
 // Atlas evidence of a mask: the sum of the placed atlas's mandible
@@ -1960,12 +1964,19 @@ static double atlas_evidence_mm3(const Mask& m, const atlas::MandiblePrior& prio
 // Soft Dice of the mask with the atlas's mandible probability p:
 // 2 sum_mask(p) / (|mask| + sum(p)), volumes in mm3; sum(p) is the atlas's
 // integral times scale^3 (its part outside the scan counted too: a mandible
-// cut by the scan's edge agrees less).
-static double atlas_agreement(const Mask& m, const atlas::Fit& fit) {
-  if (!fit.found) return -1;
-  const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
-  const double n_mm3 = static_cast<double>(m.count()) * m.geom.voxel_volume_mm3();
-  return n_mm3 > 0 ? 2 * atlas_evidence_mm3(m, prior) / (n_mm3 + prior.mass_mm3()) : 0.0;
+// cut by the scan's edge agrees less). Also the balance of the two halves:
+// the atlas evidence of the mask on the weaker side of the atlas's
+// mid-sagittal plane over that on the stronger (the atlas's frame is
+// mirror-symmetric about x = 0, which the pose carries to t).
+static void atlas_agreement(Result& r) {
+  if (!r.atlas.found) return;
+  const atlas::MandiblePrior prior(atlas::shipped(), r.atlas.pose);
+  const Plane midline{r.atlas.pose.t, r.atlas.pose.lateral()};
+  const MaskSums s = sums_over(r.mask, prior, nullptr, &midline);
+  const double n_mm3 = s.n * r.mask.geom.voxel_volume_mm3();
+  r.atlas_agreement = n_mm3 > 0 ? 2 * s.p * r.mask.geom.voxel_volume_mm3() / (n_mm3 + prior.mass_mm3()) : 0.0;
+  const double minus = s.p - s.p_plus;
+  r.atlas_halves_balance = std::max(s.p_plus, minus) > 0 ? std::min(s.p_plus, minus) / std::max(s.p_plus, minus) : 0.0;
 }
 
 
@@ -2413,7 +2424,7 @@ static Result segment_scanned(const Volume& ct, const Options& opt) {
   lap("identification and separation");
   if (r.separation_radius_mm > 0) trim_welded_skull_base(ct, r);
   check_width(r);
-  r.atlas_agreement = atlas_agreement(r.mask, r.atlas);
+  atlas_agreement(r);
   r.scanned_grid = ct.geom;
   end_at_scanned_body(ct, r);
   lap("skull base, width, agreement, scanned body");

@@ -100,6 +100,10 @@ struct Result {
   // of the mask with the atlas's probability p, on the mask's grid (-1: not computed).
   atlas::Fit atlas;
   double atlas_agreement = -1;
+  // The mask's atlas evidence (sum of p) on the weaker side of the atlas's
+  // mid-sagittal plane over that on the stronger, [0, 1] (-1: not computed):
+  // near 1 for a whole mandible, low when a half is missing (docs/qc.md).
+  double atlas_halves_balance = -1;
   std::vector<std::string> warnings;
 };
 

@@ -30,8 +30,23 @@ RunSummary good_run() {
   for (const auto& [n, p] : pts) s.landmarks.landmarks.set(n, p);
   s.reference.plane.point = {0, 0, 0};
   s.reference.plane.normal = {1, 0, 0};
+  s.atlas_halves_balance = 0.95;
   return s;
 }
+
+// A band 5 mm high along a polyline: a surface to measure the U shape on.
+Mesh band(const std::vector<Vec3>& line) {
+  Mesh m;
+  for (const Vec3& p : line) m.vertices.push_back(p), m.vertices.push_back(p + Vec3{0, 0, 5});
+  for (int i = 0; i + 1 < static_cast<int>(line.size()); ++i) {
+    m.faces.push_back({2 * i, 2 * i + 2, 2 * i + 1});
+    m.faces.push_back({2 * i + 1, 2 * i + 2, 2 * i + 3});
+  }
+  return m;
+}
+
+// good_run's mandible as a U: condyle, gonion, menton, gonion, condyle.
+const std::vector<Vec3> kU = {{50, 10, 60}, {48, 2, 8}, {20, -50, -20}, {0, -70, -25}, {-20, -50, -20}, {-48, 2, 8}, {-50, 10, 60}};
 
 void erase(RunSummary& s, const std::string& name) {
   auto& p = s.landmarks.landmarks.points;
@@ -50,6 +65,58 @@ TEST(Qc, AnAdultMandibleWhereTheAtlasPutsItPasses) {
   const Qc q = evaluate_qc(good_run());
   EXPECT_EQ(q.status, "pass");
   EXPECT_TRUE(q.failed().empty());
+}
+
+TEST(Qc, AWholeUShapedMandiblePassesTheUShapeChecks) {
+  RunSummary s = good_run();
+  s.surface = band(kU);
+  const Qc q = evaluate_qc(s);
+  EXPECT_EQ(q.status, "pass");
+  EXPECT_NEAR(check(q, "side_reach_mm")->value, 50.0, 1e-9);
+  EXPECT_EQ(check(q, "symphysis_at_midline")->value, 1.0);
+  EXPECT_NEAR(check(q, "halves_balance")->value, 0.95, 1e-12);
+}
+
+// A half that lacks its ramus and posterior body (openkbp-train pt_47: 0.34)
+// fails first on the halves, the cause, before the landmarks' geometry.
+TEST(Qc, AHalfMissingFailsOnTheHalvesBalance) {
+  RunSummary s = good_run();
+  s.surface = band(kU);
+  s.atlas_halves_balance = 0.34;
+  Qc q = evaluate_qc(s);
+  EXPECT_EQ(q.status, "fail");
+  ASSERT_FALSE(q.failed().empty());
+  EXPECT_EQ(q.failed().front()->name, "halves_balance");
+  s.atlas_halves_balance = 0.81;  // the least balanced whole mandible of openkbp-train
+  EXPECT_EQ(evaluate_qc(s).status, "pass");
+  s.atlas.found = false, s.atlas_halves_balance = -1;  // not measured without the atlas
+  q = evaluate_qc(s);
+  EXPECT_TRUE(std::isnan(check(q, "halves_balance")->value));
+}
+
+// Without the atlas the reach of each half from the symmetry plane still
+// tells a hemimandible cut at the symphysis; a mandible in two pieces has no
+// bone across the plane.
+TEST(Qc, AHemimandibleAndAMissingSymphysisFailTheUShape) {
+  RunSummary s = good_run();
+  s.atlas.found = false, s.atlas_halves_balance = -1;
+  s.surface = band({{50, 10, 60}, {48, 2, 8}, {20, -50, -20}, {0, -70, -25}, {-8, -68, -25}});
+  Qc q = evaluate_qc(s);
+  EXPECT_EQ(q.status, "fail");
+  EXPECT_NEAR(check(q, "side_reach_mm")->value, 8.0, 1e-9);
+  EXPECT_FALSE(check(q, "side_reach_mm")->passed);
+  EXPECT_TRUE(check(q, "symphysis_at_midline")->passed);
+  Mesh two = band({{50, 10, 60}, {48, 2, 8}, {20, -50, -20}});
+  const Mesh right = band({{-20, -50, -20}, {-48, 2, 8}, {-50, 10, 60}});
+  const int n = static_cast<int>(two.vertices.size());
+  two.vertices.insert(two.vertices.end(), right.vertices.begin(), right.vertices.end());
+  for (auto f : right.faces) two.faces.push_back({f[0] + n, f[1] + n, f[2] + n});
+  s.surface = two;
+  q = evaluate_qc(s);
+  EXPECT_EQ(check(q, "symphysis_at_midline")->value, 0.0);
+  EXPECT_FALSE(check(q, "symphysis_at_midline")->passed);
+  EXPECT_TRUE(check(q, "side_reach_mm")->passed);
+  EXPECT_EQ(q.status, "fail");
 }
 
 TEST(Qc, AHeadUpsideDownFailsOnTheOrientationAndTheMenton) {
