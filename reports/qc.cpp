@@ -190,6 +190,60 @@ void atlas_checks(const RunSummary& s, CheckList& out) {
           "inter-observer Dice of mandible contours on CT ~0.9 (Brouwer et al. 2012)", true, separations_message(s));
 }
 
+// The mid-sagittal plane the U shape is measured against: the atlas's, which
+// does not depend on the mandible's shape; else the mandible's symmetry plane.
+Plane midsagittal_plane(const RunSummary& s) {
+  if (s.segmentation_method == "auto" && s.atlas.found) return s.atlas.pose.midsagittal();
+  return s.reference.plane;
+}
+
+// 2. The U shape: two halves reaching out from the mid-sagittal plane, joined
+//    across it by the symphysis (a surface triangle straddling the plane),
+//    each holding its share of the atlas's mandible.
+void u_shape_checks(const RunSummary& s, CheckList& out) {
+  const std::vector<Vec3>& V = s.surface.vertices;
+  double reach = kNaN, crossing = kNaN;
+  const Plane m = midsagittal_plane(s);
+  if (!V.empty() && norm(m.normal) > 0) {
+    const Plane pl{m.point, normalized(m.normal)};
+    std::vector<double> d(V.size());
+    double left = 0, right = 0;
+    for (std::size_t i = 0; i < V.size(); ++i) {
+      d[i] = pl.signed_distance(V[i]);
+      left = std::max(left, d[i]), right = std::max(right, -d[i]);
+    }
+    reach = std::min(left, right);
+    crossing = 0;
+    for (const auto& f : s.surface.faces) {
+      const double lo = std::min({d[f[0]], d[f[1]], d[f[2]]}), hi = std::max({d[f[0]], d[f[1]], d[f[2]]});
+      if (lo <= 0 && hi >= 0) {
+        crossing = 1;
+        break;
+      }
+    }
+  }
+  const double balance_range[2] = {kMinHalvesBalance, 1.0};
+  const bool atlas = s.segmentation_method == "auto" && s.atlas.found && s.atlas_halves_balance >= 0;
+  out.add("halves_balance", atlas ? s.atlas_halves_balance : kNaN, balance_range, "",
+          "a half without its ramus (hemifacial microsomia) keeps its body, the larger share of a half (Chen et al. 2023); "
+          "openkbp-train's whole mandibles 0.81-1.00",
+          true,
+          "one half of the mandible holds far less bone than the other where the atlas expects it: part of a half is "
+          "missing (resected) or not segmented, so the two sides cannot be compared");
+  const double reach_range[2] = {kMinSideReachMm, kInf};
+  out.add("side_reach_mm", reach, reach_range, "mm",
+          "each half reaches out from the mid-sagittal plane at least half the narrowest bigonial width (~70 mm, "
+          "children) less a 15 mm shift of the midline; whole adult halves reach ~45-65 mm",
+          true,
+          "one half of the mandible is missing: resected (hemimandibulectomy) or not segmented; there is no other side to "
+          "compare with");
+  const double crossing_range[2] = {1, 1};
+  out.add("symphysis_at_midline", crossing, crossing_range, "",
+          "a mandible is one bone across the mid-sagittal plane (the symphysis)", true,
+          "no bone crosses the mid-sagittal plane: the symphysis is missing (resected) or not segmented, so the mandible "
+          "is in two pieces");
+}
+
 // 3. Anatomical plausibility of the volume and of the landmarks' distances
 //    and angles (adult and child anthropometry, bounds well outside).
 void shape_checks(const RunSummary& s, CheckList& out) {
@@ -272,61 +326,6 @@ void symmetry_checks(const RunSummary& s, CheckList& out) {
   out.add("plane_to_cranium_deg", s.cranial.found ? s.cranial.angle_to_mandible_plane_deg : kNaN, cranial_range, "deg",
           "the mandible's and the cranium's mirror planes: as plane_to_atlas_deg", false,
           "the mandible's symmetry plane and the cranium's disagree: one of the two fits is doubtful");
-}
-
-// The mid-sagittal plane the U shape is measured against: the atlas's (its
-// frame is mirror-symmetric about x = 0, which the pose carries to t), which
-// does not depend on the mandible's shape; else the mandible's symmetry plane.
-Plane midsagittal_plane(const RunSummary& s) {
-  if (s.segmentation_method == "auto" && s.atlas.found) return Plane{s.atlas.pose.t, s.atlas.pose.lateral()};
-  return s.reference.plane;
-}
-
-// 2. The U shape: two halves reaching out from the mid-sagittal plane, joined
-//    across it by the symphysis (a surface triangle straddling the plane),
-//    each holding its share of the atlas's mandible.
-void u_shape_checks(const RunSummary& s, CheckList& out) {
-  const std::vector<Vec3>& V = s.surface.vertices;
-  double reach = kNaN, crossing = kNaN;
-  const Plane m = midsagittal_plane(s);
-  if (!V.empty() && norm(m.normal) > 0) {
-    const Plane pl{m.point, normalized(m.normal)};
-    std::vector<double> d(V.size());
-    double left = 0, right = 0;
-    for (std::size_t i = 0; i < V.size(); ++i) {
-      d[i] = pl.signed_distance(V[i]);
-      left = std::max(left, d[i]), right = std::max(right, -d[i]);
-    }
-    reach = std::min(left, right);
-    crossing = 0;
-    for (const auto& f : s.surface.faces) {
-      const double lo = std::min({d[f[0]], d[f[1]], d[f[2]]}), hi = std::max({d[f[0]], d[f[1]], d[f[2]]});
-      if (lo <= 0 && hi >= 0) {
-        crossing = 1;
-        break;
-      }
-    }
-  }
-  const double balance_range[2] = {kMinHalvesBalance, 1.0};
-  const bool atlas = s.segmentation_method == "auto" && s.atlas.found && s.atlas_halves_balance >= 0;
-  out.add("halves_balance", atlas ? s.atlas_halves_balance : kNaN, balance_range, "",
-          "a half without its ramus (hemifacial microsomia) keeps its body, the larger share of a half (Chen et al. 2023); "
-          "openkbp-train's whole mandibles 0.81-1.00",
-          true,
-          "one half of the mandible holds far less bone than the other where the atlas expects it: part of a half is "
-          "missing (resected) or not segmented, so the two sides cannot be compared");
-  const double reach_range[2] = {kMinSideReachMm, kInf};
-  out.add("side_reach_mm", reach, reach_range, "mm",
-          "each half reaches out from the mid-sagittal plane at least half the narrowest bigonial width (~70 mm, "
-          "children) less a 15 mm shift of the midline; whole adult halves reach ~45-65 mm",
-          true,
-          "one half of the mandible is missing: resected (hemimandibulectomy) or not segmented; there is no other side to "
-          "compare with");
-  const double crossing_range[2] = {1, 1};
-  out.add("symphysis_at_midline", crossing, crossing_range, "",
-          "a mandible is one bone across the mid-sagittal plane (the symphysis)", true,
-          "no bone crosses the mid-sagittal plane: the symphysis is missing (resected) or not segmented, so the mandible "
-          "is in two pieces");
 }
 
 }  // namespace

@@ -440,6 +440,8 @@ Vec3 Pose::lateral() const {
   return normalized(Vec3{A.A[0], A.A[3], A.A[6]});
 }
 
+Plane Pose::midsagittal() const { return Plane{t, lateral()}; }
+
 Vec3 Pose::inverse(const Vec3& p) const {
   // A = scale R M has orthogonal columns of length scale: A^-1 = A^T / scale^2.
   const Affine A = affine(*this);

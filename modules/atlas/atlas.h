@@ -67,6 +67,9 @@ struct Pose {
   // The normal of the atlas's mid-sagittal plane in the scan (unit, LPS; the
   // atlas is mirror-symmetric, so its sign carries no meaning).
   Vec3 lateral() const;
+  // The atlas's mid-sagittal plane in the scan: the atlas's frame is
+  // mirror-symmetric about x = 0, which the pose carries to t.
+  Plane midsagittal() const;
   Vec3 inverse(const Vec3& p) const;  // scan -> atlas
 };
 

@@ -1964,14 +1964,14 @@ static double atlas_evidence_mm3(const Mask& m, const atlas::MandiblePrior& prio
 // Soft Dice of the mask with the atlas's mandible probability p:
 // 2 sum_mask(p) / (|mask| + sum(p)), volumes in mm3; sum(p) is the atlas's
 // integral times scale^3 (its part outside the scan counted too: a mandible
-// cut by the scan's edge agrees less). Also the balance of the two halves:
+// cut by the scan's edge agrees less); and the balance of the two halves:
 // the atlas evidence of the mask on the weaker side of the atlas's
-// mid-sagittal plane over that on the stronger (the atlas's frame is
-// mirror-symmetric about x = 0, which the pose carries to t).
-static void atlas_agreement(Result& r) {
+// mid-sagittal plane over that on the stronger. Sets r.atlas_agreement and
+// r.atlas_halves_balance when the atlas was placed.
+static void measure_against_atlas(Result& r) {
   if (!r.atlas.found) return;
   const atlas::MandiblePrior prior(atlas::shipped(), r.atlas.pose);
-  const Plane midline{r.atlas.pose.t, r.atlas.pose.lateral()};
+  const Plane midline = r.atlas.pose.midsagittal();
   const MaskSums s = sums_over(r.mask, prior, nullptr, &midline);
   const double n_mm3 = s.n * r.mask.geom.voxel_volume_mm3();
   r.atlas_agreement = n_mm3 > 0 ? 2 * s.p * r.mask.geom.voxel_volume_mm3() / (n_mm3 + prior.mass_mm3()) : 0.0;
@@ -2057,7 +2057,7 @@ static std::optional<Result> separate_at_occlusal_plane(const Volume& ct, const 
   Vec3 anterior = pose.apply({0, -1, 0}) - pose.apply({0, 0, 0});
   anterior = (1.0 / norm(anterior)) * anterior;
   Volume cut = ct;
-  const std::size_t n_cut = cut_at_occlusal_plane(cut, plane, weld, Plane{pose.t, pose.lateral()}, anterior, offset_hu);
+  const std::size_t n_cut = cut_at_occlusal_plane(cut, plane, weld, pose.midsagittal(), anterior, offset_hu);
   tried = true;
   Result again;
   try {
@@ -2102,7 +2102,7 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
   }
   SegLap lap;
   const WeldedOcclusion weld =
-      welded_occlusion(ct, [&prior](const Vec3& q) { return prior.at(q); }, fit.pose.superior(), Plane{fit.pose.t, fit.pose.lateral()},
+      welded_occlusion(ct, [&prior](const Vec3& q) { return prior.at(q); }, fit.pose.superior(), fit.pose.midsagittal(),
                        fit.pose.scale, opt.dense_threshold_hu, image.offset_hu);
   lap("occlusion weld search");
   if (std::getenv("MANDISYM_DEBUG_SEG"))
@@ -2424,7 +2424,7 @@ static Result segment_scanned(const Volume& ct, const Options& opt) {
   lap("identification and separation");
   if (r.separation_radius_mm > 0) trim_welded_skull_base(ct, r);
   check_width(r);
-  atlas_agreement(r);
+  measure_against_atlas(r);
   r.scanned_grid = ct.geom;
   end_at_scanned_body(ct, r);
   lap("skull base, width, agreement, scanned body");
