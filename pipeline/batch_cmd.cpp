@@ -251,8 +251,11 @@ void record_complete(Study& s, const fs::path& dir) {
     const Json v = parse_json(read_file_or_empty((dir / "results.json").string()));
     const Json* qc = find_member(v, "qc");
     const Json* status = qc ? find_member(*qc, "status") : nullptr;
-    if (status && status->is_string() && status->get<std::string>() == "fail")
+    if (status && status->is_string() && status->get<std::string>() == "fail") {
       s.status = "qc_failed", s.exit_code = static_cast<int>(ExitCode::QcFailed), s.error = "quality control failed (see its report)";
+      const Json* cause = find_member(*qc, "cause");
+      if (cause && cause->is_string()) s.error = "result failed quality control: " + cause->get<std::string>();
+    }
   } catch (const std::exception&) {
   }
 }

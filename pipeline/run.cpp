@@ -448,16 +448,13 @@ void write_summaries(const Staging& staging, const reports::RunSummary& S, const
   reports::write_text_atomic(staging.path("results.json"), dump_json(reports::results_json(S)) + "\n");
 }
 
-// A failed quality control: one line naming the fatal checks; exit code 8.
+// A failed quality control: one line with its cause and the fatal checks; exit code 8.
 int qc_exit(const reports::RunSummary& S, const std::string& input, const std::string& outdir) {
   if (S.qc.status != "fail") return 0;
-  std::string what, first;
+  std::string what;
   for (const reports::QcCheck* c : S.qc.failed())
-    if (c->fatal) {
-      what += (what.empty() ? "" : ", ") + c->name;
-      if (first.empty()) first = c->message;
-    }
-  std::cerr << "mandisym: " << input << ": result failed quality control: " << first << " (" << what << "); outputs written to "
+    if (c->fatal) what += (what.empty() ? "" : ", ") + c->name;
+  std::cerr << "mandisym: " << input << ": result failed quality control: " << S.qc.cause << " (" << what << "); outputs written to "
             << outdir << "\n";
   return static_cast<int>(ExitCode::QcFailed);
 }

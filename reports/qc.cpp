@@ -328,6 +328,36 @@ void symmetry_checks(const RunSummary& s, CheckList& out) {
           "the mandible's symmetry plane and the cranium's disagree: one of the two fits is doubtful");
 }
 
+// The cause of a failure (docs/qc.md): the shape and landmark checks fail as
+// symptoms of something upstream. In order: (1) an atlas check that failed
+// names its own cause (orientation, teeth in occlusion); (2) an
+// identification the atlas does not support: the scan may not hold the
+// mandible at all, so no downstream message ("a half resected") is to be
+// believed; (3) a mandible cut by the scan's edge, with the first symptom;
+// (4) else the first failed check's meaning.
+std::string failure_cause(const RunSummary& s, const Qc& q) {
+  const QcCheck* first = nullptr;
+  for (const QcCheck& c : q.checks)
+    if (!c.passed && c.fatal) {
+      first = &c;
+      break;
+    }
+  if (!first) return "";
+  if (first->name == "orientation_margin" || first->name == "separations_agree") return first->message;
+  const char* beyond =
+      ": the scan may not hold the whole mandible (a brain or neck scan, or a partial field of view) or the head is "
+      "unlike the atlas's heads, so the bone measured may not be the mandible";
+  if (s.segmentation_method == "auto" && s.atlas.ncc < -1)
+    return std::string("the mandible atlas could not be placed in the scan (too little of a head in the field of view)") + beyond;
+  if (s.segmentation_method == "auto" && s.atlas.ncc > -1 && s.atlas.ncc < kMinAtlasNcc) {
+    char fit[96];
+    std::snprintf(fit, sizeof fit, "the head fits the mandible atlas poorly (NCC %.2f, below %.2f)", s.atlas.ncc, kMinAtlasNcc);
+    return fit + std::string(beyond);
+  }
+  if (s.truncated) return "the mandible is cut by the scan's edge, and " + first->message;
+  return first->message;
+}
+
 }  // namespace
 
 Qc evaluate_qc(const RunSummary& s) {
@@ -351,6 +381,7 @@ Qc evaluate_qc(const RunSummary& s) {
   for (const QcCheck& c : q.checks)
     if (!c.passed) (c.fatal ? fail : warn) = true;
   q.status = fail ? "fail" : warn ? "warn" : "pass";
+  if (fail) q.cause = failure_cause(s, q);
   return q;
 }
 

@@ -25,6 +25,9 @@ struct QcCheck {
 
 struct Qc {
   std::string status = "pass";  // pass | warn | fail
+  // On a fail, what most likely explains the failed checks (docs/qc.md,
+  // "The cause of a failure"); empty otherwise.
+  std::string cause;
   std::vector<QcCheck> checks;
   std::vector<const QcCheck*> failed() const;
 };

@@ -130,6 +130,7 @@ Value atlas_json(const RunSummary& s) {
 Value qc_json(const RunSummary& s) {
   Value qc = Value::object();
   qc["status"] = s.qc.status;
+  qc["cause"] = s.qc.cause.empty() ? Json() : Json(s.qc.cause);
   Value checks = Value::array();
   for (const QcCheck& c : s.qc.checks) {
     Value v = Value::object();
@@ -154,7 +155,8 @@ void qc_html(std::ostringstream& h, const RunSummary& s) {
   const auto E = html_escape;
   auto value = [](double v) { return std::isnan(v) ? std::string("n/a") : fixed(v); };
   if (s.qc.status == "fail") {
-    h << "<div class=\"qcfail\" role=\"alert\"><strong>Result failed quality control &mdash; do not use these numbers.</strong><ul>\n";
+    h << "<div class=\"qcfail\" role=\"alert\"><strong>Result failed quality control &mdash; do not use these numbers.</strong>\n"
+      << "<p>Likely cause: " << E(s.qc.cause) << ".</p><ul>\n";
     for (const QcCheck* c : s.qc.failed())
       if (c->fatal)
         h << "<li><b>" << E(c->name) << "</b> = " << value(c->value) << " (allowed " << fixed(c->lo) << " to " << fixed(c->hi)

@@ -244,6 +244,8 @@ void draw_qc_banner(Canvas& c, const Json& results) {
       const bool failed_check = passed && passed->is_boolean() && !passed->get<bool>();
       if (failed_check && (!fail || text_at(k, {"severity"}, "fail") == "fail")) items.push_back(check_text(k));
     }
+  if (const std::string cause = text_at(results, {"qc", "cause"}, ""); fail && !cause.empty())
+    items.insert(items.begin(), "Likely cause: " + cause + ".");
   const std::string title = fail   ? "Result failed quality control \xE2\x80\x94 do not use these numbers."
                             : warn ? "Quality control: warnings \xE2\x80\x94 check the items below before using the numbers."
                             : pass ? "Quality control passed: all " + std::to_string(checks) + " checks within their limits."

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <tuple>
 #include <utility>
 
 #include "core/array_order.h"
@@ -56,6 +57,14 @@ int run(const std::string& args, std::string* err = nullptr) {
 }
 
 // The real headsq scan from ../shared/data ("" when absent: the test skips).
+// A file's bytes.
+std::string slurp_file(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
 fs::path headsq_nhdr() {
   const fs::path p = fs::path(MANDISYM_SHARED_DATA) / "headsq" / "quarter.nhdr";
   return fs::exists(p) ? p : fs::path();
@@ -849,6 +858,47 @@ TEST(EndToEnd, AMandibleMissingPartOfAHalfFailsQcOnTheHalves) {
   fs::remove_all(out);
 }
 
+// The slices [k0, k1) of a volume, in the same world space: a scan whose
+// field of view covers less of the head.
+ms::Volume slab_along_k(const ms::Volume& v, std::size_t k0, std::size_t k1) {
+  ms::Volume out;
+  out.geom = v.geom;
+  out.geom.size[2] = k1 - k0;
+  out.geom.origin = v.geom.index_to_lps(0, 0, static_cast<double>(k0));
+  const std::size_t plane = v.geom.size[0] * v.geom.size[1];
+  out.hu.assign(v.hu.begin() + static_cast<std::ptrdiff_t>(k0 * plane), v.hu.begin() + static_cast<std::ptrdiff_t>(k1 * plane));
+  return out;
+}
+
+// A head CT whose field of view holds only part of the mandible, as a brain
+// or a neck scan of a batch does: the Visible Human female (mandible at
+// slices 22-103) from slice 75 up (the rami and the skull above them: the
+// atlas fits at NCC 0.42 and the bone measured lies above the mandible) and
+// below slice 62 (the body and the spine: the atlas cannot be placed). Each
+// fails QC, and the failure says that the scan may not hold the mandible
+// rather than what its symptoms would say alone ("one half resected").
+TEST(EndToEnd, AScanThatDoesNotHoldTheMandibleFailsNamingTheFieldOfView) {
+  const fs::path ct = fs::path(MANDISYM_SHARED_DATA) / "visible-human-female" / "ct.nii.gz";
+  if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
+  const fs::path dir = temp_dir("vhf_fov");
+  fs::create_directories(dir);
+  const ms::Volume v = ms::io::read_scan(ct.string()).volume;
+  for (const auto& [name, k0, k1] : {std::tuple<const char*, std::size_t, std::size_t>{"above", 75, v.geom.size[2]}, {"below", 0, 62}}) {
+    SCOPED_TRACE(name);
+    ms::io::write_volume(slab_along_k(v, k0, k1), (dir / (std::string(name) + ".nii.gz")).string());
+    const fs::path out = dir / name;
+    std::string err;
+    ASSERT_EQ(run("run " + (dir / (std::string(name) + ".nii.gz")).string() + " -q --no-cranial -o " + out.string(), &err), 8) << err;
+    EXPECT_NE(err.find("may not hold the whole mandible"), std::string::npos) << err;
+    EXPECT_EQ(err.find("resected"), std::string::npos) << err;
+    const Value r = load(out / "results.json");
+    EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "fail");
+    EXPECT_NE(r.at("qc").at("cause").get<std::string>().find("atlas"), std::string::npos);
+    EXPECT_NE(slurp_file(out / "report.html").find("Likely cause: "), std::string::npos);
+  }
+  fs::remove_all(dir);
+}
+
 // Winding number of a closed mesh around p: the triangles' solid angles
 // (Van Oosterom and Strackee 1983) over 4 pi; 1 inside an outward mesh, 0 outside.
 double winding_number(const ms::Mesh& mesh, const ms::Vec3& p) {
@@ -1249,13 +1299,6 @@ void patch_files(const fs::path& dir, const std::string& from, const std::string
     f.seekp(0);
     f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   }
-}
-
-std::string slurp_file(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
 }
 
 TEST(EndToEnd, DicomStringsAreEscapedAndDeidentifyRemovesThem) {

@@ -119,6 +119,36 @@ TEST(Qc, AHemimandibleAndAMissingSymphysisFailTheUShape) {
   EXPECT_EQ(q.status, "fail");
 }
 
+// A failure names what most likely explains it (docs/qc.md, "The cause of a
+// failure"): the first failed check, unless the atlas says the scan may not
+// hold the mandible at all (a brain or neck scan: then "a half resected" is
+// not to be believed), or the mandible is cut by the scan's edge.
+TEST(Qc, AFailureNamesItsLikelyCause) {
+  RunSummary s = good_run();
+  s.surface = band(kU);
+  EXPECT_TRUE(evaluate_qc(s).cause.empty());
+  s.atlas_halves_balance = 0.34;
+  Qc q = evaluate_qc(s);
+  EXPECT_EQ(q.cause, check(q, "halves_balance")->message);
+  s.truncated = true;
+  q = evaluate_qc(s);
+  EXPECT_EQ(q.cause, "the mandible is cut by the scan's edge, and " + check(q, "halves_balance")->message);
+  s.atlas.ncc = 0.42, s.atlas.mirrored_ncc = 0.40;  // the Visible Human cropped above its mandible's body
+  q = evaluate_qc(s);
+  EXPECT_NE(q.cause.find("fits the mandible atlas poorly (NCC 0.42"), std::string::npos) << q.cause;
+  EXPECT_NE(q.cause.find("may not hold the whole mandible"), std::string::npos) << q.cause;
+  EXPECT_EQ(q.cause.find("resected"), std::string::npos) << q.cause;
+  s.atlas.ncc = -2, s.atlas.found = false, s.atlas_halves_balance = -1;  // no pose left half the atlas in the scan
+  s.landmarks.landmarks.set("Go_L", {-20, 2, 8});                         // a gonion across the midline
+  q = evaluate_qc(s);
+  EXPECT_EQ(q.status, "fail");
+  EXPECT_NE(q.cause.find("could not be placed"), std::string::npos) << q.cause;
+  s = good_run();
+  s.atlas.ncc = 0.45, s.atlas.mirrored_ncc = 0.55;  // upside down: the orientation comes first
+  q = evaluate_qc(s);
+  EXPECT_EQ(q.cause, check(q, "orientation_margin")->message);
+}
+
 TEST(Qc, AHeadUpsideDownFailsOnTheOrientationAndTheMenton) {
   RunSummary s = good_run();
   s.atlas.ncc = 0.50, s.atlas.mirrored_ncc = 0.74;
