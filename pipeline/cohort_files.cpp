@@ -29,6 +29,7 @@ const std::pair<const char*, std::vector<const char*>> kResultsJsonColumns[] = {
     {"mirror_p95_band", {"interpretation", "mirror_distance", "band"}},
     {"menton_deviation_mm", {"interpretation", "menton_deviation", "value"}},
     {"menton_band", {"interpretation", "menton_deviation", "band"}},
+    {"menton_measured_from", {"interpretation", "menton_deviation", "measured_from"}},
 };
 
 // A score shown as a distribution and compared between groups, with the

@@ -176,6 +176,7 @@ Interpretation menton_interpretation(const InterpretationInputs& in) {
   x.value_text = std::isfinite(d) ? fixed(std::abs(d), 2) + " mm" : "n/a";
   x.banded_value = std::isfinite(d) ? std::abs(d) : kNaN;
   x.band = classify(x.banded_value, kMentonThresholds);
+  x.measured_from = in.menton_plane_cranial ? "cranial_plane" : "mandible_plane";
   if (in.menton_plane_cranial) {
     x.title = "Menton deviation from the cranial midline";
     x.detail = std::isfinite(d) ? std::string(side_of(d)) + " of the cranial mid-sagittal plane" +

@@ -69,6 +69,9 @@ struct Interpretation {
   std::string thresholds;  // the thresholds in words
   std::vector<std::string> sources;  // reference ids (interpretation_references())
   bool provisional = false;  // band not from a published cut-off for this quantity
+  // What the value is measured from, when that can differ between runs
+  // (menton deviation: "cranial_plane" or "mandible_plane"); empty otherwise.
+  std::string measured_from;
 };
 
 // One entry per headline number, in display order. Pure: no I/O.

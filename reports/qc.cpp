@@ -347,7 +347,9 @@ std::string failure_cause(const RunSummary& s, const Qc& q) {
   const char* beyond =
       ": the scan may not hold the whole mandible (a brain or neck scan, or a partial field of view) or the head is "
       "unlike the atlas's heads, so the bone measured may not be the mandible";
-  if (s.segmentation_method == "auto" && s.atlas.ncc < -1)
+  // NCC -1: no pose of the pattern search kept enough of the atlas in the
+  // scan to be scored; below -1: not even a coarse one (atlas::ncc).
+  if (s.segmentation_method == "auto" && s.atlas.ncc <= -1)
     return std::string("the mandible atlas could not be placed in the scan (too little of a head in the field of view)") + beyond;
   if (s.segmentation_method == "auto" && s.atlas.ncc > -1 && s.atlas.ncc < kMinAtlasNcc) {
     char fit[96];

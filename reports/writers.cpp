@@ -395,6 +395,7 @@ static Json interpretation_json(const RunSummary& s) {
     e["value"] = num_or_null(it.banded_value);
     e["thresholds"] = it.thresholds;
     e["provisional"] = it.provisional;
+    if (!it.measured_from.empty()) e["measured_from"] = it.measured_from;
     e["sources"] = Json::array();
     for (const auto& id : it.sources) e["sources"].push_back(id);
   }

@@ -1550,8 +1550,10 @@ TEST(EndToEnd, BatchPassesRunOptionsAndCsvColumnsOverrideThem) {
   EXPECT_NE(row1.find("--bone-threshold 260 --no-figures\""), std::string::npos) << row1;
   EXPECT_NE(row2.find("--bone-threshold 260 --no-figures --hu-offset 5\""), std::string::npos) << row2;
   EXPECT_NE(row1.find("--threads "), std::string::npos) << row1;
-  EXPECT_NE(header.find(",qc_status,saf_band,mirror_p95_band,menton_deviation_mm,menton_band"), std::string::npos) << header;
+  EXPECT_NE(header.find(",qc_status,saf_band,mirror_p95_band,menton_deviation_mm,menton_band,menton_measured_from"), std::string::npos)
+      << header;
   EXPECT_NE(row1.find(",pass,"), std::string::npos) << row1;
+  EXPECT_TRUE(row1.find(",cranial_plane") != std::string::npos || row1.find(",mandible_plane") != std::string::npos) << row1;
   // The `group` column: cohort_groups.csv and the Groups section of cohort.html.
   std::ifstream g(out / "cohort_groups.csv");
   std::string gh, g1;

@@ -150,6 +150,12 @@ TEST(Interpretation, InputsFromARun) {
   const auto& me = *std::find_if(cards.begin(), cards.end(), [](const auto& x) { return x.key == "menton_deviation"; });
   EXPECT_EQ(me.band, Band::Marked);  // 5 mm against the skull, though 2 mm against the mandible's own plane
   EXPECT_NE(me.title.find("cranial"), std::string::npos);
+  EXPECT_EQ(me.measured_from, "cranial_plane");
+  const auto own = interpret(in);
+  const auto& me_own = *std::find_if(own.begin(), own.end(), [](const auto& x) { return x.key == "menton_deviation"; });
+  EXPECT_EQ(me_own.measured_from, "mandible_plane");
+  for (const auto& x : own)
+    if (x.key != "menton_deviation") EXPECT_TRUE(x.measured_from.empty()) << x.key;
 
   RunSummary empty;
   empty.saf.score = -1;  // not computed

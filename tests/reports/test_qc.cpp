@@ -143,6 +143,8 @@ TEST(Qc, AFailureNamesItsLikelyCause) {
   q = evaluate_qc(s);
   EXPECT_EQ(q.status, "fail");
   EXPECT_NE(q.cause.find("could not be placed"), std::string::npos) << q.cause;
+  s.atlas.ncc = -1;  // placed coarsely, but no refined pose kept half of it in the scan
+  EXPECT_NE(evaluate_qc(s).cause.find("could not be placed"), std::string::npos);
   s = good_run();
   s.atlas.ncc = 0.45, s.atlas.mirrored_ncc = 0.55;  // upside down: the orientation comes first
   q = evaluate_qc(s);
