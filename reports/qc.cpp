@@ -343,10 +343,18 @@ std::string failure_cause(const RunSummary& s, const Qc& q) {
       break;
     }
   if (!first) return "";
-  if (first->name == "orientation_margin" || first->name == "separations_agree") return first->message;
   const char* beyond =
       ": the scan may not hold the whole mandible (a brain or neck scan, or a partial field of view) or the head is "
       "unlike the atlas's heads, so the bone measured may not be the mandible";
+  // A wrong orientation is read from a flipped fit that looks like a head;
+  // when neither way up does, the scan itself is in doubt.
+  if (first->name == "orientation_margin" && std::max(s.atlas.ncc, s.atlas.mirrored_ncc) < kMinAtlasNcc) {
+    char fit[160];
+    std::snprintf(fit, sizeof fit, "the head fits the mandible atlas poorly either way up (NCC %.2f upright, %.2f flipped, below %.2f)",
+                  s.atlas.ncc, s.atlas.mirrored_ncc, kMinAtlasNcc);
+    return fit + std::string(beyond) + "; if it is a whole head, check its orientation (--orientation)";
+  }
+  if (first->name == "orientation_margin" || first->name == "separations_agree") return first->message;
   // NCC -1: no pose of the pattern search kept enough of the atlas in the
   // scan to be scored; below -1: not even a coarse one (atlas::ncc).
   if (s.segmentation_method == "auto" && s.atlas.ncc <= -1)

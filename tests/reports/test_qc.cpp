@@ -146,9 +146,13 @@ TEST(Qc, AFailureNamesItsLikelyCause) {
   s.atlas.ncc = -1;  // placed coarsely, but no refined pose kept half of it in the scan
   EXPECT_NE(evaluate_qc(s).cause.find("could not be placed"), std::string::npos);
   s = good_run();
-  s.atlas.ncc = 0.45, s.atlas.mirrored_ncc = 0.55;  // upside down: the orientation comes first
+  s.atlas.ncc = 0.45, s.atlas.mirrored_ncc = 0.74;  // upside down (headsq: 0.50 / 0.74): the orientation comes first
   q = evaluate_qc(s);
   EXPECT_EQ(q.cause, check(q, "orientation_margin")->message);
+  s.atlas.mirrored_ncc = 0.50;  // neither way up a head (a brain scan): the scan is in doubt, not its orientation
+  q = evaluate_qc(s);
+  EXPECT_FALSE(check(q, "orientation_margin")->passed);
+  EXPECT_NE(q.cause.find("poorly either way up"), std::string::npos) << q.cause;
 }
 
 TEST(Qc, AHeadUpsideDownFailsOnTheOrientationAndTheMenton) {
