@@ -154,19 +154,24 @@ Value qc_json(const RunSummary& s) {
 void qc_html(std::ostringstream& h, const RunSummary& s) {
   const auto E = html_escape;
   auto value = [](double v) { return std::isnan(v) ? std::string("n/a") : fixed(v); };
+  // The allowed range in words: an open upper end is "at least", a single value is itself.
+  auto allowed = [](const QcCheck& c) {
+    if (std::isinf(c.hi)) return "at least " + fixed(c.lo);
+    return c.lo == c.hi ? fixed(c.lo) : fixed(c.lo) + " to " + fixed(c.hi);
+  };
   if (s.qc.status == "fail") {
     h << "<div class=\"qcfail\" role=\"alert\"><strong>Result failed quality control &mdash; do not use these numbers.</strong>\n"
       << "<p>Likely cause: " << E(s.qc.cause) << ".</p><ul>\n";
     for (const QcCheck* c : s.qc.failed())
       if (c->fatal)
-        h << "<li><b>" << E(c->name) << "</b> = " << value(c->value) << " (allowed " << fixed(c->lo) << " to " << fixed(c->hi)
-          << "): " << E(c->message) << ". <span class=\"muted\">" << E(c->source) << "</span></li>\n";
+        h << "<li><b>" << E(c->name) << "</b> = " << value(c->value) << " (allowed " << allowed(*c) << "): " << E(c->message)
+          << ". <span class=\"muted\">" << E(c->source) << "</span></li>\n";
     h << "</ul></div>\n";
   }
   h << "<h2>Quality control: " << E(s.qc.status) << "</h2>\n<table><tr><th>check</th><th>value</th><th>allowed</th><th>result</th><th>source</th></tr>\n";
   for (const QcCheck& c : s.qc.checks)
-    h << "<tr><td>" << E(c.name) << "</td><td>" << value(c.value) << "</td><td>" << fixed(c.lo) << " &ndash; " << fixed(c.hi)
-      << "</td><td>" << (c.passed ? "pass" : c.fatal ? "FAIL" : "warn") << "</td><td>" << E(c.source) << "</td></tr>\n";
+    h << "<tr><td>" << E(c.name) << "</td><td>" << value(c.value) << "</td><td>" << allowed(c) << "</td><td>"
+      << (c.passed ? "pass" : c.fatal ? "FAIL" : "warn") << "</td><td>" << E(c.source) << "</td></tr>\n";
   h << "</table>\n";
 }
 

@@ -221,8 +221,12 @@ std::string check_text(const Json& check) {
   const std::string unit = text_at(check, {"unit"}, "");
   std::string s = text_at(check, {"name"}, "?") + " = " + short_number(member(check, {"value"})) + (unit.empty() ? "" : " " + unit);
   const Json* allowed = member(check, {"allowed"});
-  if (allowed && allowed->is_array() && allowed->size() == 2)
-    s += " (allowed " + short_number(&(*allowed)[0]) + " to " + short_number(&(*allowed)[1]) + ")";
+  if (allowed && allowed->is_array() && allowed->size() == 2) {
+    const std::string lo = short_number(&(*allowed)[0]), hi = short_number(&(*allowed)[1]);
+    const Json& top = (*allowed)[1];
+    const bool open_end = !top.is_number() || !std::isfinite(top.get<double>());  // null or infinite: no upper bound
+    s += " (allowed " + (open_end ? "at least " + lo : lo == hi ? lo : lo + " to " + hi) + ")";
+  }
   else if (allowed && allowed->is_string())
     s += " (allowed: " + allowed->get<std::string>() + ")";
   const std::string meaning = text_at(check, {"meaning"}, "");

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 
@@ -186,4 +187,21 @@ TEST(HtmlPage, ReportUsesTheSharedSkeleton) {
   ASSERT_NE(body, std::string::npos);
   EXPECT_EQ(html, html_page("MandiSym mandibular asymmetry report", html.substr(body + 7, html.size() - body - 7 - 15)));
   EXPECT_NE(html.find("3D views not rendered: no display"), std::string::npos);
+}
+
+// A failed run's banner leads with the likely cause (docs/qc.md), and an
+// open upper bound reads "at least", not "20 to n/a".
+TEST(HtmlPage, QcBannerGivesTheCauseAndOpenRanges) {
+  RunSummary s;
+  s.qc.status = "fail";
+  s.qc.cause = "the mandible atlas could not be placed in the scan";
+  QcCheck reach;
+  reach.name = "side_reach_mm", reach.value = 4, reach.lo = 20, reach.hi = std::numeric_limits<double>::infinity();
+  reach.passed = false, reach.fatal = true, reach.message = "one half of the mandible is missing";
+  s.qc.checks.push_back(reach);
+  const std::string html = report_html(s, {}, {}, "no display");
+  EXPECT_NE(html.find("Likely cause: the mandible atlas could not be placed in the scan."), std::string::npos);
+  EXPECT_NE(html.find("(allowed at least 20.00)"), std::string::npos);
+  EXPECT_NE(html.find("<td>at least 20.00</td>"), std::string::npos);
+  EXPECT_EQ(html.find("n/a</td><td>FAIL"), std::string::npos);
 }
