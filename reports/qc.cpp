@@ -328,6 +328,15 @@ void symmetry_checks(const RunSummary& s, CheckList& out) {
           "the mandible's symmetry plane and the cranium's disagree: one of the two fits is doubtful");
 }
 
+// "the mandible is cut by the scan's edge", with where when the landmarks
+// stage found it ("at its top and back": landmarks::Result::cut_at).
+std::string cut_by_the_edge(const RunSummary& s) {
+  std::string m = "the mandible is cut by the scan's edge";
+  const std::vector<std::string>& at = s.landmarks.cut_at;
+  for (std::size_t i = 0; i < at.size(); ++i) m += (i == 0 ? " at its " : i + 1 == at.size() ? " and " : ", ") + at[i];
+  return m;
+}
+
 // The cause of a failure (docs/qc.md): the shape and landmark checks fail as
 // symptoms of something upstream. In order: (1) an atlas check that failed
 // names its own cause (orientation, teeth in occlusion); (2) an
@@ -364,7 +373,7 @@ std::string failure_cause(const RunSummary& s, const Qc& q) {
     std::snprintf(fit, sizeof fit, "the head fits the mandible atlas poorly (NCC %.2f, below %.2f)", s.atlas.ncc, kMinAtlasNcc);
     return fit + std::string(beyond);
   }
-  if (s.truncated) return "the mandible is cut by the scan's edge, and " + first->message;
+  if (s.truncated) return cut_by_the_edge(s) + ", and " + first->message;
   return first->message;
 }
 
@@ -386,7 +395,7 @@ Qc evaluate_qc(const RunSummary& s) {
           : !s.saf.skipped.empty() ? "landmarks are missing; every SAF configuration needs one of them, so there is no SAF score"
                                    : "landmarks are missing");
   out.add("truncated", s.truncated ? 1 : 0, none, "", "the mandible must lie inside the scan", false,
-          "the mandible is cut by the scan's edge: scores are not comparable");
+          cut_by_the_edge(s) + ": scores are not comparable");
   bool fail = false, warn = false;
   for (const QcCheck& c : q.checks)
     if (!c.passed) (c.fatal ? fail : warn) = true;

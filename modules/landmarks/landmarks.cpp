@@ -770,6 +770,35 @@ std::vector<Vec3> drop_landmarks_at_edge(const Mesh& mesh, const Geometry& scan_
   return cut;
 }
 
+// Which ends of the head a truncated scan cuts the mandible at (Result::cut_at):
+// each face of the scanned grid that mesh vertices lie on (within
+// drop_landmarks_at_edge's 1.5 voxels), named by the head-frame axis its
+// outward normal is nearest to (e_ap points to the back, e_ml to the left).
+std::vector<std::string> cut_at(const std::vector<Vec3>& cut, const Geometry& sg, const Vec3& e_ml, const Vec3& e_ap,
+                                const Vec3& e_si) {
+  bool face[6] = {false, false, false, false, false, false};
+  for (const Vec3& v : cut) {
+    const Vec3 q = sg.lps_to_index(v);
+    for (int a = 0; a < 3; ++a) {
+      face[2 * a] = face[2 * a] || q[a] < 1.5;
+      face[2 * a + 1] = face[2 * a + 1] || q[a] > static_cast<double>(sg.size[a]) - 2.5;
+    }
+  }
+  std::vector<std::string> out;
+  for (int f = 0; f < 6; ++f) {
+    if (!face[f]) continue;
+    const int a = f / 2;
+    const double sign = f % 2 ? 1.0 : -1.0;
+    const Vec3 n = sign * Vec3{sg.direction[a], sg.direction[3 + a], sg.direction[6 + a]};
+    const double si = dot(n, e_si), ap = dot(n, e_ap), ml = dot(n, e_ml);
+    const char* name = std::abs(si) >= std::abs(ap) && std::abs(si) >= std::abs(ml) ? (si > 0 ? "top" : "bottom")
+                       : std::abs(ap) >= std::abs(ml)                               ? (ap > 0 ? "back" : "front")
+                                                                                    : (ml > 0 ? "left side" : "right side");
+    if (std::find(out.begin(), out.end(), name) == out.end()) out.push_back(name);
+  }
+  return out;
+}
+
 }  // namespace
 
 Plane mandible_plane(const Mesh& mesh) {
@@ -1002,9 +1031,12 @@ Result detect(const Mesh& mesh, const Options& opt) {
 
   // 6. Landmarks at the edge of a truncated scan are missing (drop_landmarks_at_edge).
   bool cut_side[2] = {false, false};
-  if (opt.scan_grid)
-    for (const Vec3& v : drop_landmarks_at_edge(mesh, *opt.scan_grid, opt.apex_radius_mm, r.landmarks, r.why_missing))
+  if (opt.scan_grid) {
+    const std::vector<Vec3> cut = drop_landmarks_at_edge(mesh, *opt.scan_grid, opt.apex_radius_mm, r.landmarks, r.why_missing);
+    for (const Vec3& v : cut)
       if (std::abs(dot(v - f.origin, e_ml)) > kSideFraction * f.umax) cut_side[dot(v - f.origin, e_ml) > 0 ? 0 : 1] = true;
+    r.cut_at = cut_at(cut, *opt.scan_grid, e_ml, e_ap, e_si);
+  }
   explain_missing(gonial, cut_side, r);
   return r;
 }

@@ -38,6 +38,10 @@ struct Result {
   std::vector<std::string> missing;
   // Why each missing landmark is missing (name -> one sentence; docs/landmarks.md, "Missing landmarks").
   std::map<std::string, std::string> why_missing;
+  // Where a truncated scan cuts the mandible, in the head's frame: "top",
+  // "bottom", "front", "back", "left side", "right side" (the patient's);
+  // empty when the mandible lies inside the scan (docs/landmarks.md, step 6).
+  std::vector<std::string> cut_at;
   std::vector<std::string> warnings;
   std::string method;
   Plane plane;                 // symmetry plane used for the labelling (normal to patient left)

@@ -152,8 +152,11 @@ TEST(Landmarks, TruncatedCondylesAreMissingNotGuessed) {
     ASSERT_TRUE(r.why_missing.count(n)) << n;
     EXPECT_NE(r.why_missing.at(n).find("edge of the scan"), std::string::npos) << r.why_missing.at(n);
   }
+  EXPECT_EQ(r.cut_at, std::vector<std::string>{"top"});
   // Without the scan grid the detector cannot know, and places them.
-  EXPECT_TRUE(ms::landmarks::detect(c.mesh).landmarks.has("Co_L"));
+  const auto blind = ms::landmarks::detect(c.mesh);
+  EXPECT_TRUE(blind.landmarks.has("Co_L"));
+  EXPECT_TRUE(blind.cut_at.empty());
 }
 
 // Landmarks of the noise-free 1 mm phantom with its left condylar process
@@ -231,6 +234,8 @@ TEST(Landmarks, LandmarksNearALateralCutAreMissing) {
     ASSERT_TRUE(r.landmarks.has(n)) << n;
     EXPECT_LE(ms::norm(*r.landmarks.find(n) - *c.ph.landmarks.find(n)), 1.5) << n;
   }
+  // Where the scan cuts the mandible, in the head's frame: the head moved 30 mm to its left.
+  EXPECT_EQ(r.cut_at, std::vector<std::string>{"left side"});
 }
 
 }  // namespace
