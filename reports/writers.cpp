@@ -204,6 +204,8 @@ static Json segmentation_json(const RunSummary& s) {
   seg["voxels"] = s.seg_voxels;
   seg["volume_mm3"] = s.seg_volume_mm3;
   seg["truncated"] = s.truncated;
+  seg["truncated_at"] = Json::array();  // where the scan cuts it, in the head's frame (docs/landmarks.md, step 6)
+  for (const std::string& at : s.landmarks.cut_at) seg["truncated_at"].push_back(at);
   if (s.segmentation_method == "auto") {
     seg["bone_threshold_hu"] = s.seg_threshold_hu;
     seg["calibration_offset_hu"] = s.seg_offset_hu;

@@ -369,6 +369,8 @@ TEST(EndToEnd, HeadCutBySideOfTheScanStopsOrWarns) {
   ASSERT_EQ(run("run " + (ph / "dicom").string() + " -o " + out.string() + " -q --no-figures --no-cranial", &err), 0) << err;
   const Value r = load(out / "results.json");
   EXPECT_TRUE(r.at("segmentation").at("truncated").get<bool>());
+  ASSERT_EQ(r.at("segmentation").at("truncated_at").size(), 1u);  // the head moved 15 mm to its left
+  EXPECT_EQ(r.at("segmentation").at("truncated_at")[0].get<std::string>(), "left side");
   EXPECT_TRUE(r.at("scores").at("saf").at("score").is_null());
   EXPECT_TRUE(r.at("landmarks").at("Co_L").is_null());
   EXPECT_FALSE(r.at("landmarks").at("Go_L").is_null());
