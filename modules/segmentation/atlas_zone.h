@@ -28,4 +28,40 @@ constexpr double kAtlasSupportP = 0.001;
 // coronoid longer than the atlas's, standing free of the skull), else 0.
 std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone, const std::vector<float>& p, const std::array<std::size_t, 3>& dims);
 
+// The zone's rim (docs/segmentation.md, "the atlas's zone", step 3): where the
+// similarity-placed atlas's p >= kAtlasZoneP ends inside a bone that goes on
+// for a few millimetres and ends in soft tissue (a ramus, angle or body
+// larger than 90 % of the training mandibles there, e.g. the longer side of
+// an asymmetric mandible), the zone's edge cuts the cortex, and when that
+// bone is fused to other bone it is no free appendix. The rim is the bone
+// within kZoneRimMm plus one voxel of the mask (geodesic, through what is
+// not soft tissue) that has no path of strictly increasing distance to
+// tissue farther out, beyond the training mandibles' support (p <
+// kAtlasSupportP) or on a face of the scanned part: bone that ends there in
+// soft tissue, not bone that goes on (a fossa's roof, a zygomatic arch, a
+// maxilla, the spine, which lie behind the voxels touching the mask).
+// The similarity fit's residual: the atlas recovers a known pose within 3 mm
+// (tests/atlas) and a population reaches a few millimetres beyond 90 training
+// mandibles; the same tolerance checks the image separation's mask against
+// the support (kSupportToleranceMm, segmentation.cpp). The extra voxel is the
+// partial-volume voxel at a bone's edge, whose centre lies up to a voxel out.
+constexpr double kZoneRimMm = 5.0;
+// Soft tissue is at most this (HU): muscle 40-60, gland and fat below,
+// unenhanced blood 30-45 (Hounsfield scale tables). Between it and the bone
+// threshold lie bone blurred by partial volume (an upper tooth's root in
+// thin alveolar bone at 4 mm voxels, the eminence beside a sigmoid notch) and
+// contrast-filled vessels: the rim's bone must end below it, so that a
+// fragment the bone threshold cut from its bone does not join.
+constexpr double kSoftTissueMaxHu = 150.0;
+
+// mask: the zone and its appendices (atlas_zone_mask); bone as there;
+// not_soft: bone or above kSoftTissueMaxHu; p: the atlas's probability at
+// every not_soft voxel; spacing in mm; faces: per axis, the first and last
+// index of the scanned part (bone on a face may go on beyond it: a scan's
+// end). Returns the mask with its rim added.
+std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, const std::vector<std::uint8_t>& bone,
+                                       const std::vector<std::uint8_t>& not_soft, const std::vector<float>& p,
+                                       const std::array<std::size_t, 3>& dims, const std::array<double, 3>& spacing,
+                                       const std::array<std::array<std::size_t, 2>, 3>& faces);
+
 }  // namespace ms::segmentation

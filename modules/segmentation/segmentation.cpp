@@ -1859,6 +1859,59 @@ constexpr double kZoneMarkerP = 0.5;
 // at ~4 mm: mean Dice 0.866 either way, worst 0.733 -> 0.719 with the cut).
 constexpr double kJointResolvingSpacingMm = 1.25;
 
+// Body cross-section (voxels at or above kBodyHu + offset_hu) of each slice
+// across grid axis `axis`.
+constexpr double kBodyHu = -500.0;
+
+static std::vector<std::size_t> body_profile(const std::vector<float>& hu, const Geometry& g, int axis, double offset_hu) {
+  std::vector<std::size_t> body(g.size[axis], 0);
+  const float tissue = static_cast<float>(offset_hu + kBodyHu);
+  for (std::size_t k = 0; k < g.size[2]; ++k)
+    for (std::size_t j = 0; j < g.size[1]; ++j) {
+      const float* row = hu.data() + g.linear(0, j, k);
+      for (std::size_t i = 0; i < g.size[0]; ++i) {
+        const std::size_t v[3] = {i, j, k};
+        body[v[axis]] += row[i] >= tissue;
+      }
+    }
+  return body;
+}
+
+// The grid axis whose direction is nearest to LPS axis `lps` (0 L, 1 P, 2 S).
+static int grid_axis_along(const Geometry& g, int lps) {
+  int best = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(g.direction[3 * lps + a]) > std::abs(g.direction[3 * lps + best])) best = a;
+  return best;
+}
+
+// Where the scanned body ends (docs/segmentation.md, "The scanned body"): a
+// scan may hold the head only up to a level and pad the rest of its grid
+// with air or noise (OpenKBP's volumes end at the field of view that way).
+// Across the scan's vertical axis, the scanned part is the run of slices
+// around the mandible's whose body cross-section is at least
+// kScannedBodyFraction of its median over the mandible's slices: the head
+// above the mandible (cranium, ~150 x 190 mm) and the neck below (~110 x
+// 120 mm) are never under half the cross-section at the mandible's level
+// (face and jaws, ~140 x 160 mm; Farkas 1994), while a scan's end drops it
+// to a few percent within a slice.
+constexpr double kScannedBodyFraction = 0.25;
+
+// The scanned run (above) of the body profile `body` around the slices
+// [lo, hi] the mandible lies in: first and last slice; the whole profile
+// when the mandible's middle slice is itself not scanned.
+static std::array<std::size_t, 2> scanned_run(const std::vector<std::size_t>& body, std::size_t lo, std::size_t hi) {
+  std::vector<std::size_t> at_mandible(body.begin() + static_cast<long>(lo), body.begin() + static_cast<long>(hi + 1));
+  std::nth_element(at_mandible.begin(), at_mandible.begin() + static_cast<long>(at_mandible.size() / 2), at_mandible.end());
+  const double floor = kScannedBodyFraction * static_cast<double>(at_mandible[at_mandible.size() / 2]);
+  auto scanned = [&](std::size_t k) { return static_cast<double>(body[k]) >= floor; };
+  std::size_t first = lo + (hi - lo) / 2, last = first;
+  if (!scanned(first)) return {0, body.size() - 1};
+  while (first > 0 && scanned(first - 1)) --first;
+  while (last + 1 < body.size() && scanned(last + 1)) ++last;
+  return {first, last};
+}
+
 // The zone cut where the image separates it from other bone
 // (docs/segmentation.md, "the atlas's zone", step 4): the separation's
 // watershed (landscape: depth and brightness, step 5 there) flooded from two
@@ -1887,10 +1940,24 @@ static std::vector<std::uint8_t> zone_cut_by_watershed(const std::vector<std::ui
   return out;
 }
 
+// The faces of the scanned part of grid g (hu on it) around `mask`: per
+// axis, the first and last index; along the vertical axis, the scanned run
+// around the mask's slices (scanned_run), else the grid's ends.
+static std::array<std::array<std::size_t, 2>, 3> scanned_faces(const std::vector<float>& hu, const Geometry& g,
+                                                               const std::vector<std::uint8_t>& mask, double offset_hu) {
+  std::array<std::array<std::size_t, 2>, 3> faces{};
+  for (int a = 0; a < 3; ++a) faces[a] = {0, g.size[a] - 1};
+  const int ver = grid_axis_along(g, 2);
+  const Box b = bounding_box(mask.data(), g.size, 0);
+  if (b.size[0] == 0 || std::abs(g.direction[6 + ver]) < 0.9) return faces;
+  faces[ver] = scanned_run(body_profile(hu, g, ver, offset_hu), b.lo[ver], b.lo[ver] + b.size[ver] - 1);
+  return faces;
+}
+
 // Identification and separation by the atlas (docs/segmentation.md): within
 // the placed atlas's box, (1) the bone mask at the bone threshold, (2) the
 // atlas's mandible probability at each bone voxel, (3) the zone and its free
-// appendices (atlas_zone_mask), (4) on scans that resolve the joint space,
+// appendices (atlas_zone_mask) and its rim (add_zone_rim), (4) on scans that resolve the joint space,
 // the zone cut where the image separates it from other bone
 // (zone_cut_by_watershed), (5) the surface level, closing and hole filling of
 // finalize().
@@ -1908,13 +1975,15 @@ static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas
   cg.origin = ct.geom.index_to_lps(static_cast<double>(region.GetIndex()[0]), static_cast<double>(region.GetIndex()[1]),
                                    static_cast<double>(region.GetIndex()[2]));
   const std::vector<float> hu = crop_values(ct, region, cg);
-  std::vector<std::uint8_t> bone(hu.size());
-  for (std::size_t i = 0; i < hu.size(); ++i) bone[i] = hu[i] >= r.threshold_hu;
+  std::vector<std::uint8_t> bone(hu.size()), not_soft(hu.size());
+  const float soft_max = static_cast<float>(r.offset_hu + kSoftTissueMaxHu);
+  for (std::size_t i = 0; i < hu.size(); ++i) bone[i] = hu[i] >= r.threshold_hu, not_soft[i] = bone[i] || hu[i] > soft_max;
   const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
-  const std::vector<float> p = prior_at_bone(prior, bone.data(), cg);
+  const std::vector<float> p = prior_at_bone(prior, not_soft.data(), cg);
   lap("atlas: bone and prior");
   std::vector<std::uint8_t> mask = atlas_zone_mask(bone, p, cg.size);
-  lap("atlas: zone and appendices");
+  mask = add_zone_rim(mask, bone, not_soft, p, cg.size, cg.spacing, scanned_faces(hu, cg, mask, r.offset_hu));
+  lap("atlas: zone, appendices and rim");
   if (std::max({cg.spacing[0], cg.spacing[1], cg.spacing[2]}) <= kJointResolvingSpacingMm + 1e-6) {
     mask = zone_cut_by_watershed(mask, bone, p, hu, r.offset_hu, cg);
     lap("atlas: zone cut by the watershed");
@@ -2224,33 +2293,6 @@ static Result segment_auto_with(const Volume& ct, const Options& opt, GridContex
 // large condyle (hyperplasia, a tumour) ends inside the scan and is kept.
 constexpr double kProcessWideningRatio = 2.0;
 
-// Body cross-section (voxels at or above kBodyHu + offset_hu) of each slice
-// across grid axis `axis`.
-constexpr double kBodyHu = -500.0;
-
-static std::vector<std::size_t> body_profile(const Volume& ct, int axis, double offset_hu) {
-  const Geometry& g = ct.geom;
-  std::vector<std::size_t> body(g.size[axis], 0);
-  const float tissue = static_cast<float>(offset_hu + kBodyHu);
-  for (std::size_t k = 0; k < g.size[2]; ++k)
-    for (std::size_t j = 0; j < g.size[1]; ++j) {
-      const float* row = ct.hu.data() + g.linear(0, j, k);
-      for (std::size_t i = 0; i < g.size[0]; ++i) {
-        const std::size_t v[3] = {i, j, k};
-        body[v[axis]] += row[i] >= tissue;
-      }
-    }
-  return body;
-}
-
-// The grid axis whose direction is nearest to LPS axis `lps` (0 L, 1 P, 2 S).
-static int grid_axis_along(const Geometry& g, int lps) {
-  int best = 0;
-  for (int a = 1; a < 3; ++a)
-    if (std::abs(g.direction[3 * lps + a]) > std::abs(g.direction[3 * lps + best])) best = a;
-  return best;
-}
-
 void trim_welded_skull_base(const Volume& ct, Result& r) {
   const Geometry& g = r.mask.geom;
   // Grid axes along the patient's left-right and inferior-superior axes.
@@ -2306,7 +2348,7 @@ void trim_welded_skull_base(const Volume& ct, Result& r) {
   // The top of the scan: its last slice, or the last one through the body
   // (a quarter of the widest body cross-section above -500 HU) when empty
   // slices pad the volume beyond it.
-  const std::vector<std::size_t> body = body_profile(ct, ver, r.offset_hu);
+  const std::vector<std::size_t> body = body_profile(ct.hu, ct.geom, ver, r.offset_hu);
   const std::size_t widest = *std::max_element(body.begin(), body.end());
   std::size_t top = ns - 1;
   while (top > 0 && 4 * body[up[top]] < widest) --top;
@@ -2367,34 +2409,14 @@ static Box scanned_box(const Volume& ct) {
   return b;
 }
 
-// Where the scanned body ends (docs/segmentation.md, "The scanned body"): a
-// scan may hold the head only up to a level and pad the rest of its grid
-// with air or noise (OpenKBP's volumes end at the field of view that way).
-// Across the scan's vertical axis, the scanned part is the run of slices
-// around the mandible's whose body cross-section is at least
-// kScannedBodyFraction of its median over the mandible's slices: the head
-// above the mandible (cranium, ~150 x 190 mm) and the neck below (~110 x
-// 120 mm) are never under half the cross-section at the mandible's level
-// (face and jaws, ~140 x 160 mm; Farkas 1994), while a scan's end drops it
-// to a few percent within a slice. The mask in the run's end slice is cut
-// by the scan: truncated, and the scanned grid ends there.
-constexpr double kScannedBodyFraction = 0.25;
 
 static void end_at_scanned_body(const Volume& ct, Result& r) {
   const Geometry& g = r.mask.geom;
   const int ver = grid_axis_along(g, 2);
   const Box b = bounding_box(r.mask.data.data(), g.size, 0);
   if (b.size[0] == 0 || std::abs(g.direction[6 + ver]) < 0.9) return;
-  const std::vector<std::size_t> body = body_profile(ct, ver, r.offset_hu);
-  std::vector<std::size_t> at_mandible(body.begin() + static_cast<long>(b.lo[ver]), body.begin() + static_cast<long>(b.lo[ver] + b.size[ver]));
-  std::nth_element(at_mandible.begin(), at_mandible.begin() + static_cast<long>(at_mandible.size() / 2), at_mandible.end());
-  const double floor = kScannedBodyFraction * static_cast<double>(at_mandible[at_mandible.size() / 2]);
-  auto scanned = [&](std::size_t s) { return static_cast<double>(body[s]) >= floor; };
-  const std::size_t mid = b.lo[ver] + b.size[ver] / 2;
-  if (!scanned(mid)) return;  // no body at the mandible's middle: leave the grid as it is
-  std::size_t lo = mid, hi = mid;
-  while (lo > 0 && scanned(lo - 1)) --lo;
-  while (hi + 1 < g.size[ver] && scanned(hi + 1)) ++hi;
+  const std::vector<std::size_t> body = body_profile(ct.hu, ct.geom, ver, r.offset_hu);
+  const auto [lo, hi] = scanned_run(body, b.lo[ver], b.lo[ver] + b.size[ver] - 1);
   if (lo == 0 && hi + 1 == g.size[ver]) return;
   Geometry sg = r.scanned_grid;
   Vec3 first{0, 0, 0};  // index of the run's first slice's corner voxel

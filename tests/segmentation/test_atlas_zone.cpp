@@ -16,6 +16,7 @@ struct Grid {
   std::vector<std::uint8_t> bone = std::vector<std::uint8_t>(4000, 0);
   std::vector<float> p = std::vector<float>(4000, 0.0f);
   std::size_t at(std::size_t x, std::size_t y, std::size_t z) const { return x + dims[0] * (y + dims[1] * z); }
+  std::array<std::array<std::size_t, 2>, 3> faces() const { return {{{0, dims[0] - 1}, {0, dims[1] - 1}, {0, dims[2] - 1}}}; }
   // A bar of bone along x from x0 to x1 (inclusive) at (y, z) = (5, 5), with probability p.
   void bar(std::size_t x0, std::size_t x1, float prob) {
     for (std::size_t x = x0; x <= x1; ++x) bone[at(x, 5, 5)] = 1, p[at(x, 5, 5)] = prob;
@@ -50,4 +51,66 @@ TEST(AtlasZone, LeavesBoneThatDoesNotTouchTheZone) {
   const auto m = atlas_zone_mask(g.bone, g.p, g.dims);
   for (std::size_t x = 12; x <= 16; ++x) EXPECT_EQ(m[g.at(x, 5, 5)], 0) << x;
   EXPECT_EQ(m[g.at(9, 5, 5)], 1);
+}
+
+// The zone's rim (add_zone_rim): a zone cut 2 mm inside a bone's edge over
+// its length, that bone fused at one end to a skull beyond the training
+// mandibles' support (no free appendix): the rim is added, the skull is not,
+// nor the rim's voxels that lead out to it or to the grid's face.
+TEST(AtlasZone, AddsTheRimOfABoneTheZoneCutsThroughButNotTheBoneItIsFusedTo) {
+  using ms::segmentation::add_zone_rim;
+  Grid g;
+  const float rim_p = static_cast<float>(kAtlasZoneP / 2);
+  for (std::size_t x = 0; x <= 20; ++x) {
+    g.bone[g.at(x, 5, 5)] = 1, g.p[g.at(x, 5, 5)] = 0.6f;   // the zone
+    g.bone[g.at(x, 6, 5)] = 1, g.p[g.at(x, 6, 5)] = rim_p;  // the cortex beyond it, ending in soft tissue at y 8
+    g.bone[g.at(x, 7, 5)] = 1, g.p[g.at(x, 7, 5)] = rim_p;
+  }
+  for (std::size_t x = 21; x < 40; ++x) g.bone[g.at(x, 7, 5)] = 1, g.p[g.at(x, 7, 5)] = static_cast<float>(kAtlasSupportP / 2);
+  const auto zone = atlas_zone_mask(g.bone, g.p, g.dims);
+  EXPECT_EQ(zone[g.at(10, 6, 5)], 0) << "fused to the skull: no free appendix";
+  const auto m = add_zone_rim(zone, g.bone, g.bone, g.p, g.dims, {1.0, 1.0, 1.0}, g.faces());
+  for (std::size_t x = 2; x <= 17; ++x) EXPECT_EQ(m[g.at(x, 6, 5)] + m[g.at(x, 7, 5)], 2) << x;
+  EXPECT_EQ(m[g.at(0, 7, 5)], 0) << "on the grid's face: it may go on outside";
+  for (std::size_t x = 21; x < 40; ++x) EXPECT_EQ(m[g.at(x, 7, 5)], 0) << x;
+  EXPECT_EQ(m[g.at(20, 7, 5)], 0) << "leads out to the skull";
+}
+
+// Bone beside the zone that goes on beyond the rim's reach (kZoneRimMm plus
+// a voxel) within the support and then into a skull (a fossa's roof over a
+// condyle): not added, not even its voxels touching the zone.
+TEST(AtlasZone, LeavesBoneThatGoesOnBeyondTheRim) {
+  using ms::segmentation::add_zone_rim;
+  using ms::segmentation::kZoneRimMm;
+  Grid g;
+  g.bar(0, 9, 0.6f);
+  const float in_support = static_cast<float>(kAtlasZoneP / 2);
+  for (std::size_t y = 6; y < 10; ++y) g.bone[g.at(5, y, 5)] = 1, g.p[g.at(5, y, 5)] = in_support;  // up from the zone
+  for (std::size_t x = 5; x < 40; ++x)  // and on, far beyond, into the skull
+    g.bone[g.at(x, 9, 5)] = 1, g.p[g.at(x, 9, 5)] = x < 30 ? in_support : static_cast<float>(kAtlasSupportP / 2);
+  ASSERT_LT(kZoneRimMm + 1.0, 20.0);
+  const auto m = add_zone_rim(atlas_zone_mask(g.bone, g.p, g.dims), g.bone, g.bone, g.p, g.dims, {1.0, 1.0, 1.0}, g.faces());
+  for (std::size_t y = 6; y < 10; ++y) EXPECT_EQ(m[g.at(5, y, 5)], 0) << y;
+  for (std::size_t x = 0; x <= 9; ++x) EXPECT_EQ(m[g.at(x, 5, 5)], 1) << x;
+}
+
+// A fragment the bone threshold cut from its bone (an upper tooth's crown
+// whose root runs on in alveolar bone blurred below the threshold) does not
+// end in soft tissue: it goes on through what is not soft tissue and is not
+// added; with soft tissue beyond it, the same fragment is the rim.
+TEST(AtlasZone, AFragmentThatGoesOnBelowTheBoneThresholdIsNoRim) {
+  using ms::segmentation::add_zone_rim;
+  Grid g;
+  g.bar(0, 9, 0.6f);
+  const float rim_p = static_cast<float>(kAtlasZoneP / 2);
+  for (std::size_t x = 2; x <= 4; ++x) g.bone[g.at(x, 6, 5)] = 1, g.p[g.at(x, 6, 5)] = rim_p;  // the fragment
+  std::vector<std::uint8_t> not_soft = g.bone;
+  for (std::size_t y = 7; y < 10; ++y)  // blurred bone above it, going on into the maxilla beyond the support
+    for (std::size_t z = 5; z < 10; ++z) not_soft[g.at(3, y, z)] = 1, g.p[g.at(3, y, z)] = z < 9 ? rim_p : static_cast<float>(kAtlasSupportP / 2);
+  std::vector<std::uint8_t> zone(g.bone.size(), 0);  // the zone alone (standing free, the fragment is an appendix)
+  for (std::size_t x = 0; x <= 9; ++x) zone[g.at(x, 5, 5)] = 1;
+  const auto with_blur = add_zone_rim(zone, g.bone, not_soft, g.p, g.dims, {1.0, 1.0, 1.0}, g.faces());
+  EXPECT_EQ(with_blur[g.at(3, 6, 5)], 0);
+  const auto with_soft_tissue = add_zone_rim(zone, g.bone, g.bone, g.p, g.dims, {1.0, 1.0, 1.0}, g.faces());
+  for (std::size_t x = 2; x <= 4; ++x) EXPECT_EQ(with_soft_tissue[g.at(x, 6, 5)], 1) << x;
 }
