@@ -1975,18 +1975,26 @@ static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas
   cg.origin = ct.geom.index_to_lps(static_cast<double>(region.GetIndex()[0]), static_cast<double>(region.GetIndex()[1]),
                                    static_cast<double>(region.GetIndex()[2]));
   const std::vector<float> hu = crop_values(ct, region, cg);
+  // The rim and the joint cut are exclusive (docs/segmentation.md, step 3):
+  // where the voxels resolve the joint space the image draws the zone's
+  // edge at the joints, and a rim several voxels deep would end in a ledge
+  // below the condyle's top.
+  const bool resolves_joints = std::max({cg.spacing[0], cg.spacing[1], cg.spacing[2]}) <= kJointResolvingSpacingMm + 1e-6;
   std::vector<std::uint8_t> bone(hu.size()), not_soft(hu.size());
   const float soft_max = static_cast<float>(r.offset_hu + kSoftTissueMaxHu);
-  for (std::size_t i = 0; i < hu.size(); ++i) bone[i] = hu[i] >= r.threshold_hu, not_soft[i] = bone[i] || hu[i] > soft_max;
+  for (std::size_t i = 0; i < hu.size(); ++i)
+    bone[i] = hu[i] >= r.threshold_hu, not_soft[i] = bone[i] || (!resolves_joints && hu[i] > soft_max);
   const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
   const std::vector<float> p = prior_at_bone(prior, not_soft.data(), cg);
   lap("atlas: bone and prior");
   std::vector<std::uint8_t> mask = atlas_zone_mask(bone, p, cg.size);
-  mask = add_zone_rim(mask, bone, not_soft, p, cg.size, cg.spacing, scanned_faces(hu, cg, mask, r.offset_hu));
-  lap("atlas: zone, appendices and rim");
-  if (std::max({cg.spacing[0], cg.spacing[1], cg.spacing[2]}) <= kJointResolvingSpacingMm + 1e-6) {
+  lap("atlas: zone and appendices");
+  if (resolves_joints) {
     mask = zone_cut_by_watershed(mask, bone, p, hu, r.offset_hu, cg);
     lap("atlas: zone cut by the watershed");
+  } else {
+    mask = add_zone_rim(mask, bone, not_soft, p, cg.size, cg.spacing, scanned_faces(hu, cg, mask, r.offset_hu));
+    lap("atlas: zone's rim");
   }
   if (std::find(mask.begin(), mask.end(), 1) == mask.end())
     throw Error(ExitCode::NoMandible, "no mandible found: no bone lies where the mandible atlas places the mandible (" +
