@@ -3,12 +3,40 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
-#include <functional>
 #include <limits>
 #include <queue>
 #include <utility>
 
 namespace ms::segmentation {
+namespace {
+
+// The 26 neighbours of a voxel inside a grid, with the length of each step (mm).
+class Neighbourhood {
+ public:
+  Neighbourhood(const std::array<std::size_t, 3>& dims, const std::array<double, 3>& spacing)
+      : nx_(static_cast<long>(dims[0])), ny_(static_cast<long>(dims[1])), nz_(static_cast<long>(dims[2])) {
+    for (int k = 0; k < 27; ++k) {
+      const double d[3] = {(k % 3 - 1) * spacing[0], (k / 3 % 3 - 1) * spacing[1], (k / 9 - 1) * spacing[2]};
+      step_[k] = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    }
+  }
+  // visit(q, step_mm) for each neighbour q of voxel i.
+  template <class Visit>
+  void each(std::size_t i, Visit&& visit) const {
+    const long x = static_cast<long>(i) % nx_, y = static_cast<long>(i) / nx_ % ny_, z = static_cast<long>(i) / (nx_ * ny_);
+    for (int k = 0; k < 27; ++k) {
+      const long a = x + k % 3 - 1, b = y + k / 3 % 3 - 1, c = z + k / 9 - 1;
+      if (k == 13 || a < 0 || b < 0 || c < 0 || a >= nx_ || b >= ny_ || c >= nz_) continue;
+      visit(static_cast<std::size_t>((c * ny_ + b) * nx_ + a), step_[k]);
+    }
+  }
+
+ private:
+  long nx_, ny_, nz_;
+  double step_[27];
+};
+
+}  // namespace
 
 std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone, const std::vector<float>& p,
                                           const std::array<std::size_t, 3>& dims) {
@@ -18,7 +46,7 @@ std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone,
   for (std::size_t i = 0; i < n; ++i) out[i] = bone[i] && p[i] >= kAtlasZoneP;
   // 2. Components of the bone outside the zone (26-connected, breadth first):
   //    one touching the zone and staying within the atlas's support joins it.
-  const long nx = static_cast<long>(dims[0]), ny = static_cast<long>(dims[1]), nz = static_cast<long>(dims[2]);
+  const Neighbourhood around(dims, {1.0, 1.0, 1.0});
   std::vector<std::uint8_t> seen(n, 0);
   std::vector<std::size_t> component;
   for (std::size_t seed = 0; seed < n; ++seed) {
@@ -30,18 +58,11 @@ std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone,
     for (std::size_t head = 0; head < component.size(); ++head) {
       const std::size_t i = component[head];
       beyond_support = beyond_support || p[i] < kAtlasSupportP;
-      const long x = static_cast<long>(i % dims[0]), y = static_cast<long>((i / dims[0]) % dims[1]),
-                 z = static_cast<long>(i / (dims[0] * dims[1]));
-      for (long dz = -1; dz <= 1; ++dz)
-        for (long dy = -1; dy <= 1; ++dy)
-          for (long dx = -1; dx <= 1; ++dx) {
-            const long a = x + dx, b = y + dy, c = z + dz;
-            if (a < 0 || b < 0 || c < 0 || a >= nx || b >= ny || c >= nz) continue;
-            const std::size_t q = static_cast<std::size_t>((c * ny + b) * nx + a);
-            if (!bone[q]) continue;
-            if (out[q] && p[q] >= kAtlasZoneP) touches = true;
-            else if (!out[q] && !seen[q]) seen[q] = 1, component.push_back(q);
-          }
+      around.each(i, [&](std::size_t q, double) {
+        if (!bone[q]) return;
+        if (out[q] && p[q] >= kAtlasZoneP) touches = true;
+        else if (!out[q] && !seen[q]) seen[q] = 1, component.push_back(q);
+      });
     }
     if (touches && !beyond_support)
       for (std::size_t i : component) out[i] = 1;
@@ -54,22 +75,9 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
                                        const std::array<std::size_t, 3>& dims, const std::array<double, 3>& spacing,
                                        const std::array<std::array<std::size_t, 2>, 3>& faces) {
   const std::size_t n = mask.size();
-  const long nx = static_cast<long>(dims[0]), ny = static_cast<long>(dims[1]), nz = static_cast<long>(dims[2]);
+  const Neighbourhood around(dims, spacing);
   const double reach = kZoneRimMm + std::max({spacing[0], spacing[1], spacing[2]});
   const float inf = std::numeric_limits<float>::infinity();
-  auto for_neighbours = [&](std::size_t i, const std::function<void(std::size_t, double)>& visit) {
-    const long x = static_cast<long>(i % dims[0]), y = static_cast<long>((i / dims[0]) % dims[1]),
-               z = static_cast<long>(i / (dims[0] * dims[1]));
-    for (long dz = -1; dz <= 1; ++dz)
-      for (long dy = -1; dy <= 1; ++dy)
-        for (long dx = -1; dx <= 1; ++dx) {
-          const long a = x + dx, b = y + dy, c = z + dz;
-          if ((dx | dy | dz) == 0 || a < 0 || b < 0 || c < 0 || a >= nx || b >= ny || c >= nz) continue;
-          visit(static_cast<std::size_t>((c * ny + b) * nx + a),
-                std::sqrt(double(dx * dx) * spacing[0] * spacing[0] + double(dy * dy) * spacing[1] * spacing[1] +
-                          double(dz * dz) * spacing[2] * spacing[2]));
-        }
-  };
   // 1. Geodesic distance from the mask through what is not soft tissue
   //    outside it (Dijkstra, 26-neighbour steps), expanded no farther than
   //    `reach`.
@@ -85,7 +93,7 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
     if (di > d[i]) continue;
     if (!mask[i]) near.push_back(i);
     if (di > reach) continue;
-    for_neighbours(i, [&](std::size_t q, double step) {
+    around.each(i, [&](std::size_t q, double step) {
       const float dq = di + static_cast<float>(step);
       if (not_soft[q] && !mask[q] && dq < d[q]) d[q] = dq, front.push({dq, q});
     });
@@ -95,11 +103,9 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
   //    go on outside), and, from the farthest in, every voxel with such a voxel
   //    farther out beside it.
   auto on_face = [&](std::size_t i) {
-    const long x = static_cast<long>(i % dims[0]), y = static_cast<long>((i / dims[0]) % dims[1]),
-               z = static_cast<long>(i / (dims[0] * dims[1]));
-    const long at[3] = {x, y, z};
+    const std::size_t at[3] = {i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1])};
     for (int a = 0; a < 3; ++a)
-      if (at[a] <= static_cast<long>(faces[a][0]) || at[a] >= static_cast<long>(faces[a][1])) return true;
+      if (at[a] <= faces[a][0] || at[a] >= faces[a][1]) return true;
     return false;
   };
   std::vector<std::uint8_t> goes_on(n, 0);
@@ -107,7 +113,7 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
     const std::size_t i = *it;
     bool on = d[i] > reach || p[i] < kAtlasSupportP || on_face(i);
     if (!on)
-      for_neighbours(i, [&](std::size_t q, double) { on = on || (not_soft[q] && !mask[q] && d[q] > d[i] && (goes_on[q] || d[q] > reach)); });
+      around.each(i, [&](std::size_t q, double) { on = on || (not_soft[q] && !mask[q] && d[q] > d[i] && (goes_on[q] || d[q] > reach)); });
     goes_on[i] = on;
   }
   // 3. The rim: the bone within reach that ends there.
