@@ -100,8 +100,9 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
   }
   // 2. Bone that goes on: beyond reach, beyond the support or on a face of
   //    the scanned part (cut by the scan's edge or the atlas's box: it may
-  //    go on outside), and, from the farthest in, every voxel with such a voxel
-  //    farther out beside it.
+  //    go on outside), and, from the farthest in, every voxel with such a
+  //    voxel farther out beside it (a finite larger distance: reached, so
+  //    outside the mask and not soft tissue).
   auto on_face = [&](std::size_t i) {
     const std::size_t at[3] = {i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1])};
     for (int a = 0; a < 3; ++a)
@@ -113,7 +114,7 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
     const std::size_t i = *it;
     bool on = d[i] > reach || p[i] < kAtlasSupportP || on_face(i);
     if (!on)
-      around.each(i, [&](std::size_t q, double) { on = on || (not_soft[q] && !mask[q] && d[q] > d[i] && (goes_on[q] || d[q] > reach)); });
+      around.each(i, [&](std::size_t q, double) { on = on || (goes_on[q] && d[q] > d[i]); });
     goes_on[i] = on;
   }
   // 3. The rim: the bone within reach that ends there.

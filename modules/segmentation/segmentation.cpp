@@ -2417,7 +2417,10 @@ static Box scanned_box(const Volume& ct) {
   return b;
 }
 
-
+// The scanned body's end (docs/segmentation.md, "The scanned body"): the
+// scanned run of slices around the mask (scanned_run) becomes the scanned
+// grid, and a mask reaching an end slice of the run inside the grid is cut
+// by the scan: truncated.
 static void end_at_scanned_body(const Volume& ct, Result& r) {
   const Geometry& g = r.mask.geom;
   const int ver = grid_axis_along(g, 2);
