@@ -14,6 +14,15 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// The scan's lowest value, HU: air reads -1000 HU by the scale's definition
+// (water 0), fat about -100; a head CT holds air around the head or in its
+// airways (and scanners pad outside the field of view below it). A scan whose
+// lowest value is above -500 HU is not in HU: stored as HU + 1024 or HU +
+// 1000 without its offset (NRRD, raw NIfTI; headsq, OpenKBP), every
+// threshold reads soft tissue as bone (headsq without --hu-offset: a 157 cm3
+// "mandible", Dice 0.53 against its reference, exit 0 with a warning).
+constexpr double kMaxLowestHu = -500.0;
+
 // Mandible volume, cm3: the 90 clinical contours of the atlas's training
 // scans (OpenKBP folds 1-4) span 29-112 cm3 (median 63); the bounds are
 // widened for children (a mandible at 0.65 of adult size has 0.27 of the
@@ -164,6 +173,18 @@ std::string separations_message(const RunSummary& s) {
   return m + ": the upper teeth are welded to the lower ones over " + area +
          " mm2 (teeth in occlusion), so the image's separation took the maxilla and the atlas's zone leaves out the lower "
          "crowns; a scan with the teeth apart (a bite block) or an external mask (--mask) avoids it";
+}
+
+// 0. The input's values are CT numbers (HU after --hu-offset).
+void input_checks(const RunSummary& s, CheckList& out) {
+  const double range[2] = {-kInf, kMaxLowestHu};
+  char meaning[256];
+  std::snprintf(meaning, sizeof meaning,
+                "the scan holds no air (its lowest value is %.0f HU; air reads -1000 HU): its values are not HU, so every "
+                "threshold is off; if they are stored as HU + 1024 (air at 0), give --hu-offset -1024",
+                s.scan.lowest_hu);
+  out.add("lowest_value_hu", s.scan.lowest_hu, range, "HU",
+          "air reads -1000 HU (the scale's definition); a head CT holds air around the head or in its airways", true, meaning);
 }
 
 // 1. Orientation and identification by the atlas (automatic segmentation
@@ -338,7 +359,8 @@ std::string cut_by_the_edge(const RunSummary& s) {
 }
 
 // The cause of a failure (docs/qc.md): the shape and landmark checks fail as
-// symptoms of something upstream. In order: (1) an atlas check that failed
+// symptoms of something upstream. In order: (0) values that are not HU;
+// (1) an atlas check that failed
 // names its own cause (orientation, teeth in occlusion); (2) an
 // identification the atlas does not support: the scan may not hold the
 // mandible at all, so no downstream message ("a half resected") is to be
@@ -352,6 +374,7 @@ std::string failure_cause(const RunSummary& s, const Qc& q) {
       break;
     }
   if (!first) return "";
+  if (first->name == "lowest_value_hu") return first->message;  // every threshold is off: nothing downstream is to be believed
   const char* beyond =
       ": the scan may not hold the whole mandible (a brain or neck scan, or a partial field of view) or the head is "
       "unlike the atlas's heads, so the bone measured may not be the mandible";
@@ -382,6 +405,7 @@ std::string failure_cause(const RunSummary& s, const Qc& q) {
 Qc evaluate_qc(const RunSummary& s) {
   Qc q;
   CheckList out{q};
+  input_checks(s, out);
   atlas_checks(s, out);
   u_shape_checks(s, out);  // before the landmarks' checks: a missing half explains their failures
   shape_checks(s, out);

@@ -154,9 +154,11 @@ Value qc_json(const RunSummary& s) {
 void qc_html(std::ostringstream& h, const RunSummary& s) {
   const auto E = html_escape;
   auto value = [](double v) { return std::isnan(v) ? std::string("n/a") : fixed(v); };
-  // The allowed range in words: an open upper end is "at least", a single value is itself.
+  // The allowed range in words: an open upper end is "at least", an open
+  // lower end "at most", a single value is itself.
   auto allowed = [](const QcCheck& c) {
     if (std::isinf(c.hi)) return "at least " + fixed(c.lo);
+    if (std::isinf(c.lo)) return "at most " + fixed(c.hi);
     return c.lo == c.hi ? fixed(c.lo) : fixed(c.lo) + " to " + fixed(c.hi);
   };
   if (s.qc.status == "fail") {

@@ -107,6 +107,7 @@ struct ScanInfo {
   std::string series_description;
   std::size_t file_count = 0;
   std::string pixel_sha256;  // of the HU voxel values as loaded (float32, x-fastest)
+  double lowest_hu = -1000;  // the lowest voxel value, HU after --hu-offset (air reads ~ -1000)
   std::vector<std::string> warnings;
 };
 

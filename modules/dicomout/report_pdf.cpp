@@ -223,9 +223,10 @@ std::string check_text(const Json& check) {
   const Json* allowed = member(check, {"allowed"});
   if (allowed && allowed->is_array() && allowed->size() == 2) {
     const std::string lo = short_number(&(*allowed)[0]), hi = short_number(&(*allowed)[1]);
-    const Json& top = (*allowed)[1];
+    const Json &bottom = (*allowed)[0], &top = (*allowed)[1];
     const bool open_end = !top.is_number() || !std::isfinite(top.get<double>());  // null or infinite: no upper bound
-    s += " (allowed " + (open_end ? "at least " + lo : lo == hi ? lo : lo + " to " + hi) + ")";
+    const bool open_start = !bottom.is_number() || !std::isfinite(bottom.get<double>());  // no lower bound
+    s += " (allowed " + (open_end ? "at least " + lo : open_start ? "at most " + hi : lo == hi ? lo : lo + " to " + hi) + ")";
   }
   else if (allowed && allowed->is_string())
     s += " (allowed: " + allowed->get<std::string>() + ")";

@@ -264,6 +264,7 @@ void finish(LoadedScan& scan, double hu_offset) {
     for (const auto& d : digests) top.update(d.data(), d.size());
     scan.info.pixel_sha256 = top.hex_digest();
   }
+  scan.info.lowest_hu = static_cast<double>(mn);
   // A CT in HU has air near -1000 and nothing far below it.
   if (mn > -500 || mn < -3100) {
     char range[96];  // %.0f: any finite float prints (an int cast of 1e30 would be undefined)

@@ -499,6 +499,24 @@ TEST(EndToEnd, HeadsqUpsideDownFailsQualityControlNamingTheOrientation) {
   fs::remove_all(out);
 }
 
+// headsq upright but read without its --hu-offset: stored as HU + 1024, its
+// air reads 0 HU and soft tissue ~1070, so the bone threshold takes soft
+// tissue too (a 157 cm3 mask, Dice 0.53 against the reference, exit 0 with
+// warnings before the input check). It fails quality control on its input
+// (exit 8) and the message names the option that fixes it.
+TEST(EndToEnd, HeadsqWithoutItsHuOffsetFailsNamingTheOffset) {
+  const fs::path nhdr = headsq_nhdr();
+  if (nhdr.empty()) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("headsq_no_offset");
+  std::string err;
+  ASSERT_EQ(run("run " + nhdr.string() + " --orientation LPI --no-figures -o " + out.string() + " -q", &err), 8) << err;
+  EXPECT_NE(err.find("--hu-offset -1024"), std::string::npos) << err;
+  EXPECT_NE(err.find("lowest_value_hu"), std::string::npos) << err;
+  const Value r = load(out / "results.json");
+  EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "fail");
+  fs::remove_all(out);
+}
+
 // headsq upright (--orientation LPI): the mandible, and QC does not fail.
 TEST(EndToEnd, HeadsqUprightIsTheMandibleAndPassesTheGate) {
   if (headsq_nhdr().empty()) GTEST_SKIP() << "shared data not present";

@@ -155,6 +155,27 @@ TEST(Qc, AFailureNamesItsLikelyCause) {
   EXPECT_NE(q.cause.find("poorly either way up"), std::string::npos) << q.cause;
 }
 
+// Values stored as HU + 1024 and read without --hu-offset (headsq: air at 0,
+// a 157 cm3 "mandible" of soft tissue and bone, Dice 0.53, and only warnings
+// before this check): the run fails on its input, and the cause says which
+// option fixes it, ahead of the symptoms downstream.
+TEST(Qc, ValuesThatAreNotHuFailNamingTheOffset) {
+  RunSummary s = good_run();
+  EXPECT_TRUE(check(evaluate_qc(s), "lowest_value_hu")->passed);
+  s.scan.lowest_hu = 0;
+  s.seg_volume_mm3 = 157000;
+  s.atlas.ncc = 0.54;
+  const Qc q = evaluate_qc(s);
+  EXPECT_EQ(q.status, "fail");
+  EXPECT_FALSE(check(q, "lowest_value_hu")->passed);
+  EXPECT_EQ(q.cause, check(q, "lowest_value_hu")->message);
+  EXPECT_NE(q.cause.find("--hu-offset -1024"), std::string::npos) << q.cause;
+  s.scan.lowest_hu = -499;  // fat and soft tissue only: still no air
+  EXPECT_FALSE(check(evaluate_qc(s), "lowest_value_hu")->passed);
+  s.scan.lowest_hu = -3024;  // a scanner's padding outside the field of view
+  EXPECT_TRUE(check(evaluate_qc(s), "lowest_value_hu")->passed);
+}
+
 TEST(Qc, AHeadUpsideDownFailsOnTheOrientationAndTheMenton) {
   RunSummary s = good_run();
   s.atlas.ncc = 0.50, s.atlas.mirrored_ncc = 0.74;
