@@ -20,7 +20,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // lowest value is above -500 HU is not in HU: stored as HU + 1024 or HU +
 // 1000 without its offset (NRRD, raw NIfTI; headsq, OpenKBP), every
 // threshold reads soft tissue as bone (headsq without --hu-offset: a 157 cm3
-// "mandible", Dice 0.53 against its reference, exit 0 with a warning).
+// "mandible", Dice 0.53 against its reference). NaN (not read) passes.
 constexpr double kMaxLowestHu = -500.0;
 
 // Mandible volume, cm3: the 90 clinical contours of the atlas's training

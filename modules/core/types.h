@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -107,7 +108,7 @@ struct ScanInfo {
   std::string series_description;
   std::size_t file_count = 0;
   std::string pixel_sha256;  // of the HU voxel values as loaded (float32, x-fastest)
-  double lowest_hu = -1000;  // the lowest voxel value, HU after --hu-offset (air reads ~ -1000)
+  double lowest_hu = std::numeric_limits<double>::quiet_NaN();  // the lowest voxel value, HU after --hu-offset; NaN: not read
   std::vector<std::string> warnings;
 };
 

@@ -161,6 +161,7 @@ TEST(Qc, AFailureNamesItsLikelyCause) {
 // option fixes it, ahead of the symptoms downstream.
 TEST(Qc, ValuesThatAreNotHuFailNamingTheOffset) {
   RunSummary s = good_run();
+  s.scan.lowest_hu = -1024;  // air
   EXPECT_TRUE(check(evaluate_qc(s), "lowest_value_hu")->passed);
   s.scan.lowest_hu = 0;
   s.seg_volume_mm3 = 157000;
