@@ -158,6 +158,14 @@ class MandiblePrior {
   double mass_mm3_ = 0;
 };
 
+// Height of the atlas's sigmoid notch (mm along the atlas frame's superior
+// axis from its origin, the training mandibles' mean centroid): the lowest
+// axial level of the topmost run of levels where one half (x > 0) of the
+// mean mandible (p >= 0.5) is two pieces, a coronoid process in front and a
+// condyle behind. NaN when the halves never split. Measured on the shipped
+// atlas: 30 mm (condyle top 39 mm, coronoid top 33 mm; 3 mm levels).
+double sigmoid_notch_height(const Atlas& atlas);
+
 // The atlas compiled into this binary.
 const Atlas& shipped();
 

@@ -39,13 +39,14 @@ class Neighbourhood {
 }  // namespace
 
 std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone, const std::vector<float>& p,
-                                          const std::array<std::size_t, 3>& dims) {
+                                          const std::array<std::size_t, 3>& dims, const std::function<bool(std::size_t)>& in_room) {
   const std::size_t n = bone.size();
   std::vector<std::uint8_t> out(n, 0);
   // 1. The zone.
   for (std::size_t i = 0; i < n; ++i) out[i] = bone[i] && p[i] >= kAtlasZoneP;
   // 2. Components of the bone outside the zone (26-connected, breadth first):
-  //    one touching the zone and staying within the atlas's support joins it.
+  //    one touching the zone and staying within the atlas's support, or
+  //    wholly within the room of a taller process, joins it.
   const Neighbourhood around(dims, {1.0, 1.0, 1.0});
   std::vector<std::uint8_t> seen(n, 0);
   std::vector<std::size_t> component;
@@ -64,7 +65,7 @@ std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone,
         else if (!out[q] && !seen[q]) seen[q] = 1, component.push_back(q);
       });
     }
-    if (touches && !beyond_support)
+    if (touches && (!beyond_support || (in_room && std::all_of(component.begin(), component.end(), in_room))))
       for (std::size_t i : component) out[i] = 1;
   }
   return out;

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include <array>
@@ -24,9 +25,20 @@ constexpr double kAtlasSupportP = 0.001;
 // bone: 1 where a voxel is bone; p: the atlas's mandible probability at every
 // bone voxel (any value elsewhere); dims: the grid. Returns 1 for the zone's
 // bone and for every 26-connected component of the remaining bone that
-// touches the zone and has no voxel with p < kAtlasSupportP (a condyle or
-// coronoid longer than the atlas's, standing free of the skull), else 0.
-std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone, const std::vector<float>& p, const std::array<std::size_t, 3>& dims);
+// touches the zone and either has no voxel with p < kAtlasSupportP (a
+// condyle or coronoid longer than the atlas's, standing free of the skull)
+// or lies wholly where in_room(i) holds (when given).
+// in_room: where a condyle or coronoid taller than every training
+// mandible's may stand (docs/segmentation.md, step 3, "Processes past the
+// support": the support grown by the fit's tolerance, above the atlas's
+// sigmoid notch; segmentation.cpp). A coronoid tip the bone threshold cut
+// from its process at ~4 mm voxels joins; an upper crown over the lower
+// teeth (below the notch) does not, nor a piece fused to the arch or the
+// skull base (it reaches beyond the grown support). It is asked only of the
+// components that touch the zone and reach past the support, until one
+// voxel is out.
+std::vector<std::uint8_t> atlas_zone_mask(const std::vector<std::uint8_t>& bone, const std::vector<float>& p, const std::array<std::size_t, 3>& dims,
+                                          const std::function<bool(std::size_t)>& in_room = {});
 
 // The zone's rim (docs/segmentation.md, "the atlas's zone", step 3): where the
 // similarity-placed atlas's p >= kAtlasZoneP ends inside a bone that goes on

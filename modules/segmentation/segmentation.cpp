@@ -1950,6 +1950,56 @@ static std::vector<std::uint8_t> zone_cut_by_watershed(const std::vector<std::ui
   return out;
 }
 
+// A mandible may reach a little beyond every training mandible at the fitted
+// pose: the similarity fit leaves a few millimetres (tests/atlas recovers a
+// known pose within 3 mm) and a population reaches beyond 90 training cases.
+// So the image's mask is checked against the training mandibles' support
+// grown by this (mm in the atlas's frame, times the fitted scale in the
+// scan). Another bone taken with the mandible lies farther out (the vault,
+// the maxilla, the spine: OpenKBP's old wrong masks 0.58-0.82 in support).
+// Random phantom anatomies whose rami are longer than any training mandible's
+// (docs/phantom.md): 96-98 % within 5 mm of the support, 91-96 % within it.
+constexpr double kSupportToleranceMm = 5.0;
+
+// The shipped atlas with its mandible field replaced by the support grown by
+// kSupportToleranceMm: 1 within, 0 beyond (placed like the prior, read at 0.5).
+static const atlas::Atlas& grown_support_atlas() {
+  static const atlas::Atlas grown = [] {
+    atlas::Atlas a = atlas::shipped();
+    const atlas::Grid& g = a.grid;
+    std::vector<std::uint8_t> support(a.mandible.size());
+    for (std::size_t i = 0; i < support.size(); ++i) support[i] = a.mandible[i] >= kAtlasSupportP;
+    const float tol2 = static_cast<float>(kSupportToleranceMm * kSupportToleranceMm);
+    const std::vector<float> d2 =
+        squared_distance_transform(support.data(), {std::size_t(g.n[0]), std::size_t(g.n[1]), std::size_t(g.n[2])},
+                                   {g.spacing, g.spacing, g.spacing}, 4 * tol2);
+    for (std::size_t i = 0; i < d2.size(); ++i) a.mandible[i] = d2[i] <= tol2 ? 1.0f : 0.0f;
+    return a;
+  }();
+  return grown;
+}
+
+// Where a process taller than every training mandible's may stand
+// (atlas_zone_mask's in_room): within the support grown by
+// kSupportToleranceMm and above the atlas's sigmoid notch (the placed
+// atlas's frame; atlas::sigmoid_notch_height).
+class ProcessRoom {
+ public:
+  ProcessRoom(const Geometry& g, const atlas::Pose& pose)
+      : g_(g), pose_(pose), grown_(grown_support_atlas(), pose), notch_(atlas::sigmoid_notch_height(atlas::shipped())) {}
+  bool operator()(std::size_t i) const {
+    const Vec3 q = g_.index_to_lps(static_cast<double>(i % g_.size[0]), static_cast<double>(i / g_.size[0] % g_.size[1]),
+                                   static_cast<double>(i / (g_.size[0] * g_.size[1])));
+    return pose_.inverse(q)[2] >= notch_ && grown_.at(q) >= 0.5;  // false when the notch is NaN
+  }
+
+ private:
+  const Geometry& g_;
+  const atlas::Pose& pose_;
+  atlas::MandiblePrior grown_;
+  double notch_;
+};
+
 // The faces of the scanned part of grid g (hu on it) around `mask`: per
 // axis, the first and last index; along the vertical axis, the scanned run
 // around the mask's slices (scanned_run), else the grid's ends.
@@ -1997,7 +2047,8 @@ static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas
   const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
   const std::vector<float> p = prior_at_bone(prior, not_soft.data(), cg);
   lap("atlas: bone and prior");
-  std::vector<std::uint8_t> mask = atlas_zone_mask(bone, p, cg.size);
+  const ProcessRoom room(cg, fit.pose);
+  std::vector<std::uint8_t> mask = atlas_zone_mask(bone, p, cg.size, std::cref(room));
   lap("atlas: zone and appendices");
   if (resolves_joints) {
     mask = zone_cut_by_watershed(mask, bone, p, hu, r.offset_hu, cg);
@@ -2074,35 +2125,6 @@ struct ZoneCheck {
   double in_support = 0;  // fraction of the image mask within the grown support
   double evidence = 0;    // its atlas evidence over the zone mask's
 };
-
-// A mandible may reach a little beyond every training mandible at the fitted
-// pose: the similarity fit leaves a few millimetres (tests/atlas recovers a
-// known pose within 3 mm) and a population reaches beyond 90 training cases.
-// So the image's mask is checked against the training mandibles' support
-// grown by this (mm in the atlas's frame, times the fitted scale in the
-// scan). Another bone taken with the mandible lies farther out (the vault,
-// the maxilla, the spine: OpenKBP's old wrong masks 0.58-0.82 in support).
-// Random phantom anatomies whose rami are longer than any training mandible's
-// (docs/phantom.md): 96-98 % within 5 mm of the support, 91-96 % within it.
-constexpr double kSupportToleranceMm = 5.0;
-
-// The shipped atlas with its mandible field replaced by the support grown by
-// kSupportToleranceMm: 1 within, 0 beyond (placed like the prior, read at 0.5).
-static const atlas::Atlas& grown_support_atlas() {
-  static const atlas::Atlas grown = [] {
-    atlas::Atlas a = atlas::shipped();
-    const atlas::Grid& g = a.grid;
-    std::vector<std::uint8_t> support(a.mandible.size());
-    for (std::size_t i = 0; i < support.size(); ++i) support[i] = a.mandible[i] >= kAtlasSupportP;
-    const float tol2 = static_cast<float>(kSupportToleranceMm * kSupportToleranceMm);
-    const std::vector<float> d2 =
-        squared_distance_transform(support.data(), {std::size_t(g.n[0]), std::size_t(g.n[1]), std::size_t(g.n[2])},
-                                   {g.spacing, g.spacing, g.spacing}, 4 * tol2);
-    for (std::size_t i = 0; i < d2.size(); ++i) a.mandible[i] = d2[i] <= tol2 ? 1.0f : 0.0f;
-    return a;
-  }();
-  return grown;
-}
 
 static ZoneCheck check_against_zone(const Mask& image, double zone_mm3, const atlas::MandiblePrior& prior, const atlas::Pose& pose) {
   const atlas::MandiblePrior grown(grown_support_atlas(), pose);

@@ -105,6 +105,31 @@ TEST(Atlas, ShippedAtlasIsBuiltAndMirrorSymmetric) {
   EXPECT_LT(cm3, 112.0);
 }
 
+// The sigmoid notch: on a synthetic half-mandible (a ramus splitting at
+// level 6 into a condyle to level 9 and a coronoid to level 8), the lowest
+// level of the two processes; on the shipped atlas, between the coronoid's
+// top and the ramus below, as measured (30 mm: condyle top 39, coronoid 33).
+TEST(Atlas, SigmoidNotchIsTheLowestLevelOfTheTwoProcesses) {
+  Atlas a;
+  a.grid.n = {12, 12, 12};
+  a.grid.spacing = 2.0;
+  a.grid.origin = {-11.0, -11.0, -4.0};  // x > 0 from i = 6; level k at z = -4 + 2k
+  a.mandible.assign(a.grid.count(), 0.0f);
+  for (int k = 2; k <= 9; ++k)
+    for (int j = 2; j <= 9; ++j) {
+      const bool condyle = j >= 7, coronoid = j <= 3;
+      if (k >= 6 && !(condyle || coronoid)) continue;  // the notch between them
+      if (k > 8 && !condyle) continue;
+      for (int i = 7; i <= 9; ++i) a.mandible[a.grid.linear(i, j, k)] = a.mandible[a.grid.linear(11 - i, j, k)] = 0.9f;
+    }
+  EXPECT_DOUBLE_EQ(sigmoid_notch_height(a), -4.0 + 2.0 * 6);
+  for (float& v : a.mandible) v = 0.0f;
+  EXPECT_TRUE(std::isnan(sigmoid_notch_height(a)));
+  const double shipped_notch = sigmoid_notch_height(shipped());
+  EXPECT_GE(shipped_notch, 20.0);
+  EXPECT_LE(shipped_notch, 35.0);
+}
+
 // The search finds a pose it did not start from: shift, flexion, turn, tilt
 // and scale, and tells an upside-down placement from an upright one.
 TEST(Atlas, FitRecoversAKnownPoseAndAFlip) {

@@ -114,3 +114,32 @@ TEST(AtlasZone, AFragmentThatGoesOnBelowTheBoneThresholdIsNoRim) {
   const auto with_soft_tissue = add_zone_rim(zone, g.bone, g.bone, g.p, g.dims, {1.0, 1.0, 1.0}, g.faces());
   for (std::size_t x = 2; x <= 4; ++x) EXPECT_EQ(with_soft_tissue[g.at(x, 6, 5)], 1) << x;
 }
+
+// Processes past the support (atlas_zone_mask's in_room): a coronoid tip
+// reaching beyond every training mandible joins when all of it lies in the
+// room a taller process may take (the grown support above the sigmoid
+// notch); with one voxel outside that room (below the notch, or past the
+// grown support: an upper crown, a piece of the arch) it does not, nor
+// without a room.
+TEST(AtlasZone, TakesAProcessPastTheSupportOnlyWithinItsRoom) {
+  Grid g;
+  g.bar(0, 9, 0.6f);                                      // the zone
+  g.bar(10, 12, static_cast<float>(kAtlasZoneP / 2));     // within the support
+  g.bar(13, 15, static_cast<float>(kAtlasSupportP / 2));  // past it
+  std::vector<std::uint8_t> room(g.bone.size(), 0);
+  for (std::size_t x = 10; x <= 15; ++x) room[g.at(x, 5, 5)] = 1;
+  const auto in_room = [&](std::size_t i) { return room[i] != 0; };
+  const auto m = atlas_zone_mask(g.bone, g.p, g.dims, in_room);
+  for (std::size_t x = 0; x <= 15; ++x) EXPECT_EQ(m[g.at(x, 5, 5)], 1) << x;
+  const auto without = atlas_zone_mask(g.bone, g.p, g.dims);
+  for (std::size_t x = 10; x <= 15; ++x) EXPECT_EQ(without[g.at(x, 5, 5)], 0) << x;
+  room[g.at(15, 5, 5)] = 0;
+  const auto left = atlas_zone_mask(g.bone, g.p, g.dims, in_room);
+  for (std::size_t x = 10; x <= 15; ++x) EXPECT_EQ(left[g.at(x, 5, 5)], 0) << x;
+  // A piece past the support that does not touch the zone stays out.
+  Grid h;
+  h.bar(0, 9, 0.6f);
+  h.bar(12, 15, static_cast<float>(kAtlasSupportP / 2));
+  const auto apart = atlas_zone_mask(h.bone, h.p, h.dims, [](std::size_t) { return true; });
+  for (std::size_t x = 12; x <= 15; ++x) EXPECT_EQ(apart[h.at(x, 5, 5)], 0) << x;
+}
