@@ -213,6 +213,7 @@ segmentation::Result segment_stage(const Volume& ct, const RunSettings& rs, cons
   S.atlas_agreement = seg.atlas_agreement;
   S.atlas_halves_balance = seg.atlas_halves_balance;
   S.image_zone_dice = seg.image_zone_dice;
+  S.taken_image_zone_dice = seg.taken_image_zone_dice;
   S.welded_occlusion_mm2 = seg.welded_occlusion_mm2;
   S.occlusion_cut_refused = seg.occlusion_cut_refused;
   for (const auto& w : seg.warnings) S.warnings.push_back("segmentation: " + w);

@@ -36,6 +36,7 @@ struct RunSummary {
   double atlas_agreement = -1;
   double atlas_halves_balance = -1;  // segmentation::Result::atlas_halves_balance
   double image_zone_dice = -1;  // segmentation::Result::image_zone_dice
+  double taken_image_zone_dice = -1;  // segmentation::Result::taken_image_zone_dice
   double welded_occlusion_mm2 = 0;  // segmentation::Result::welded_occlusion_mm2
   bool occlusion_cut_refused = false;  // segmentation::Result::occlusion_cut_refused
   surface::MeshStats mesh;

@@ -2184,6 +2184,30 @@ static std::optional<Result> separate_at_occlusal_plane(const Volume& ct, const 
   return again;
 }
 
+// Dice between a mask on a grid and one on its bin-shrunk grid (bin_average
+// by factors f: coarse voxel c covers the f0 f1 f2 fine voxels c f .. c f +
+// f - 1), counted on the fine grid, in one pass over the fine mask's
+// bounding box.
+static double dice_across_bins(const Mask& fine, const Mask& coarse, const std::array<unsigned, 3>& f) {
+  const Geometry& g = fine.geom;
+  const Geometry& c = coarse.geom;
+  const double per_bin = static_cast<double>(f[0]) * f[1] * f[2];
+  const double b = per_bin * static_cast<double>(std::count_if(coarse.data.begin(), coarse.data.end(), [](std::uint8_t v) { return v != 0; }));
+  const Box box = bounding_box(fine.data.data(), g.size, 0);
+  double a = 0, both = 0;
+  const long k0 = static_cast<long>(box.lo[2]), k1 = static_cast<long>(box.lo[2] + box.size[2]);
+#pragma omp parallel for schedule(static) reduction(+ : a, both)
+  for (long k = k0; k < k1; ++k)
+    for (std::size_t j = box.lo[1]; j < box.lo[1] + box.size[1]; ++j)
+      for (std::size_t i = box.lo[0]; i < box.lo[0] + box.size[0]; ++i) {
+        if (!fine.data[g.linear(i, j, static_cast<std::size_t>(k))]) continue;
+        const std::size_t ci = i / f[0], cj = j / f[1], ck = static_cast<std::size_t>(k) / f[2];
+        a += 1;
+        both += ci < c.size[0] && cj < c.size[1] && ck < c.size[2] && coarse.data[c.linear(ci, cj, ck)];
+      }
+  return a + b > 0 ? 2 * both / (a + b) : 0.0;
+}
+
 static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, const atlas::Fit& fit, const GridContext& whole) {
   const Geometry& g = ct.geom;
   // The image separates what its voxels resolve (resolves_cortex: 1.25 mm
@@ -2204,8 +2228,10 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
   for (int a = 0; a < 3; ++a) f[a] = std::max(1u, static_cast<unsigned>(std::floor(kZoneCheckSpacingMm / g.spacing[a] + 1e-6)));
   const atlas::MandiblePrior prior(atlas::shipped(), fit.pose);
   double zone_mm3 = 0;
+  Mask zone_check;  // the zone on the check grid (bins f of ct's voxels)
   try {
-    zone_mm3 = atlas_evidence_mm3(segment_by_atlas(f[0] * f[1] * f[2] > 1 ? bin_average(ct, f) : ct, opt, fit).mask, prior);
+    zone_check = segment_by_atlas(f[0] * f[1] * f[2] > 1 ? bin_average(ct, f) : ct, opt, fit).mask;
+    zone_mm3 = atlas_evidence_mm3(zone_check, prior);
   } catch (const Error&) {
     zone_mm3 = 0;  // no zone: nothing to measure the image's mask against
   }
@@ -2227,6 +2253,7 @@ static Result segment_by_atlas_and_image(const Volume& ct, const Options& opt, c
     std::fprintf(stderr, "  image separation vs atlas: %.3f in its support, %.3f of the zone's evidence\n", c.in_support, c.evidence);
   if (zone_mm3 > 0 && c.in_support >= kImageInSupport && c.evidence >= kImageEvidenceShare) {
     image.marker_source += " (verified by the atlas)";
+    image.taken_image_zone_dice = dice_across_bins(image.mask, zone_check, f);
     return image;
   }
   Result zone = segment_by_atlas(ct, opt, fit);

@@ -77,6 +77,10 @@ struct Result {
   // image's and the zone was taken (two independent estimates; docs/qc.md,
   // separations_agree); -1 when they were not compared.
   double image_zone_dice = -1;
+  // ... and when the atlas verified the image's mask and it was taken: Dice
+  // between it and the atlas zone's on the zone check's grid (~1 mm;
+  // docs/qc.md, image_agrees_with_zone); -1 when not compared.
+  double taken_image_zone_dice = -1;
   // When image_zone_dice was measured: the area (mm2) of the cheek-teeth
   // columns where the scan runs in dense bone through enamel from the
   // atlas's zone to at least kWeldRiseMm above it, i.e. upper

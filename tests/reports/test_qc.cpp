@@ -314,6 +314,26 @@ TEST(Qc, AProcessFarFromItsMirroredPartnerWarns) {
   EXPECT_EQ(q.status, "warn");
 }
 
+// image_agrees_with_zone: when the image's mask was taken, disagreeing with
+// the atlas's zone beyond observer variation warns (a soft kernel's thin
+// mask); not measured (-1): not applicable.
+TEST(Qc, TakenImageMaskThatDisagreesWithTheZoneWarns) {
+  RunSummary s = good_run();
+  const QcCheck* c = check(evaluate_qc(s), "image_agrees_with_zone");
+  ASSERT_NE(c, nullptr);
+  EXPECT_TRUE(c->passed);
+  EXPECT_TRUE(std::isnan(c->value));
+  s.taken_image_zone_dice = 0.84;
+  const Qc q = evaluate_qc(s);
+  c = check(q, "image_agrees_with_zone");
+  EXPECT_FALSE(c->passed);
+  EXPECT_FALSE(c->fatal);
+  EXPECT_EQ(q.status, "warn");
+  EXPECT_NE(c->message.find("soft reconstruction kernel"), std::string::npos) << c->message;
+  s.taken_image_zone_dice = 0.94;
+  EXPECT_TRUE(check(evaluate_qc(s), "image_agrees_with_zone")->passed);
+}
+
 // separations_agree fails below 0.85 and names its cause when the
 // segmentation found one: teeth welded in occlusion, with or without the cut
 // at the occlusal plane having been made (docs/qc.md).
