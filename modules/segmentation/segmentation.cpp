@@ -12,6 +12,7 @@
 #include <map>
 #include <cmath>
 #include <limits>
+#include <functional>
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
