@@ -14,6 +14,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "core/components.h"
 #include "core/debug_lap.h"
 #include "core/error.h"
 #include "threads/threads.h"
@@ -454,32 +455,14 @@ Vec3 Pose::inverse(const Vec3& p) const {
 
 // Pieces (8-connected) of one level k of the atlas's mean mandible (p >= 0.5)
 // on the x > 0 half.
-static int pieces_at_level(const Atlas& a, int k) {
+static std::size_t pieces_at_level(const Atlas& a, int k) {
   const Grid& g = a.grid;
   std::vector<std::uint8_t> in(static_cast<std::size_t>(g.n[0]) * g.n[1], 0);
   for (int j = 0; j < g.n[1]; ++j)
     for (int i = 0; i < g.n[0]; ++i)
       in[i + std::size_t(g.n[0]) * j] = g.origin[0] + g.spacing * i > 0 && a.mandible[g.linear(i, j, k)] >= 0.5f;
-  int pieces = 0;
-  std::vector<int> stack;
-  for (int s = 0; s < static_cast<int>(in.size()); ++s) {
-    if (!in[s]) continue;
-    ++pieces;
-    in[s] = 0;
-    stack.assign(1, s);
-    while (!stack.empty()) {
-      const int c = stack.back(), ci = c % g.n[0], cj = c / g.n[0];
-      stack.pop_back();
-      for (int dj = -1; dj <= 1; ++dj)
-        for (int di = -1; di <= 1; ++di) {
-          const int ni = ci + di, nj = cj + dj;
-          if (ni < 0 || nj < 0 || ni >= g.n[0] || nj >= g.n[1] || !in[ni + g.n[0] * nj]) continue;
-          in[ni + g.n[0] * nj] = 0;
-          stack.push_back(ni + g.n[0] * nj);
-        }
-    }
-  }
-  return pieces;
+  std::vector<std::uint32_t> label(in.size());
+  return label_components(in.data(), {std::size_t(g.n[0]), std::size_t(g.n[1]), 1}, /*fully_connected=*/true, 0, label.data()).count;
 }
 
 double sigmoid_notch_height(const Atlas& a) {

@@ -1980,6 +1980,12 @@ static const atlas::Atlas& grown_support_atlas() {
   return grown;
 }
 
+// The shipped atlas's sigmoid notch height (atlas frame, mm), found once.
+static double shipped_notch_height() {
+  static const double notch = atlas::sigmoid_notch_height(atlas::shipped());
+  return notch;
+}
+
 // Where a process taller than every training mandible's may stand
 // (atlas_zone_mask's in_room): within the support grown by
 // kSupportToleranceMm and above the atlas's sigmoid notch (the placed
@@ -1987,7 +1993,7 @@ static const atlas::Atlas& grown_support_atlas() {
 class ProcessRoom {
  public:
   ProcessRoom(const Geometry& g, const atlas::Pose& pose)
-      : g_(g), pose_(pose), grown_(grown_support_atlas(), pose), notch_(atlas::sigmoid_notch_height(atlas::shipped())) {}
+      : g_(g), pose_(pose), grown_(grown_support_atlas(), pose), notch_(shipped_notch_height()) {}
   bool operator()(std::size_t i) const {
     const Vec3 q = g_.index_to_lps(static_cast<double>(i % g_.size[0]), static_cast<double>(i / g_.size[0] % g_.size[1]),
                                    static_cast<double>(i / (g_.size[0] * g_.size[1])));
