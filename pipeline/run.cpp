@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "asymmetry/measures.h"
+#include "atlas/atlas.h"
 #include "asymmetry/saf.h"
 #include "core/error.h"
 #include "core/memory.h"
@@ -198,9 +199,17 @@ io::LoadedScan ingest_stage(const std::string& input, const RunSettings& rs, boo
 }
 
 // 2. Segmentation: the label map given with --mask, or the automatic one.
+// An external mask still gets the mandible atlas placed in the CT: the head
+// frame checks the palatal plane against its pose and falls back to it
+// (docs/landmarks.md, "Head frame order"), as with the automatic one.
 segmentation::Result segment_stage(const Volume& ct, const RunSettings& rs, const cli::Args& args, reports::RunSummary& S) {
-  segmentation::Result seg = args.has("mask") ? segmentation::from_label_map(ct.geom, io::read_label_map(args.get("mask")), rs.label, args.get("mask"))
-                                              : segmentation::segment_mandible(ct, rs.segmentation);
+  segmentation::Result seg;
+  if (args.has("mask")) {
+    seg = segmentation::from_label_map(ct.geom, io::read_label_map(args.get("mask")), rs.label, args.get("mask"));
+    if (rs.segmentation.use_atlas) seg.atlas = atlas::fit_ct(ct, rs.segmentation.bone_threshold_hu);
+  } else {
+    seg = segmentation::segment_mandible(ct, rs.segmentation);
+  }
   S.segmentation_method = seg.method;
   S.seg_voxels = seg.voxels;
   S.seg_volume_mm3 = seg.volume_mm3;

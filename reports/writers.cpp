@@ -213,8 +213,8 @@ static Json segmentation_json(const RunSummary& s) {
     seg["calibration_offset_hu"] = s.seg_offset_hu;
     seg["separation_depth_mm"] = s.seg_separation_mm > 0 ? Value(s.seg_separation_mm) : Value();
     seg["marker_source"] = s.seg_marker_source.empty() ? Value() : Value(s.seg_marker_source);
-    if (s.atlas.ncc >= -1) seg["atlas"] = atlas_json(s);
   }
+  if (s.atlas.ncc >= -1) seg["atlas"] = atlas_json(s);  // external masks: placed for the head frame only
   return seg;
 }
 

@@ -1204,6 +1204,38 @@ TEST(EndToEnd, CoronoidTipsTallerThanTheAtlasJoinTheirProcesses) {
   EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "pass");
 }
 
+// An external mask is labelled in the head frame of the automatic run of the
+// same scan (docs/landmarks.md, "Head frame order"): the atlas is placed in
+// the CT for it too. On openkbp-train pt_183 (a tuning fold) the clinical
+// contour's run (--mask) took a nasal floor found 50 degrees from the
+// atlas's superior: its gonia lay 22-25 mm and its menton 17 mm from the
+// automatic run's, and QC failed (menton above the condyles). In the atlas's
+// frame, as the automatic run: 2.0 / 2.3 and 0.2 mm.
+TEST(EndToEnd, ExternalMaskIsLabelledInTheAtlasHeadFrame) {
+  const fs::path dir = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / "pt_183";
+  if (!fs::exists(dir / "ct.nii.gz")) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("pt_183_auto"), contour = temp_dir("pt_183_mask");
+  std::string err;
+  const std::string common = "run " + (dir / "ct.nii.gz").string() + " --hu-offset -1000 -q --no-figures --no-cranial -o ";
+  ASSERT_EQ(run(common + out.string(), &err), 0) << err;
+  ASSERT_EQ(run(common + contour.string() + " --mask " + (dir / "mask.nii.gz").string(), &err), 0) << err;
+  const Value r = load(out / "results.json"), c = load(contour / "results.json");
+  EXPECT_EQ(c.at("head_frame").at("source").get<std::string>(), "mandible atlas");
+  EXPECT_EQ(c.at("head_frame").at("source"), r.at("head_frame").at("source"));
+  const Value& atlas = c.at("segmentation").at("atlas");
+  EXPECT_TRUE(atlas.at("found").get<bool>());
+  EXPECT_TRUE(atlas.at("agreement").is_null());  // placed for the frame, not to judge the mask
+  EXPECT_NE(c.at("qc").at("status").get<std::string>(), "fail");
+  for (const char* l : {"Go_L", "Go_R", "Me"}) {
+    ASSERT_FALSE(r.at("landmarks").at(l).is_null() || c.at("landmarks").at(l).is_null()) << l;
+    const double d = ms::distance(landmark(r, l), landmark(c, l));
+    std::printf("%s %.1f mm from the automatic run's\n", l, d);
+    EXPECT_LE(d, 5.0) << l;
+  }
+  fs::remove_all(out);
+  fs::remove_all(contour);
+}
+
 // With its own segmentation of a scan that resolves the cortex, the surface
 // is placed between voxels where the CT crosses the segmentation's surface
 // level (docs/surface.md, "Sub-voxel placement"): the mesh keeps the mask's
