@@ -206,8 +206,11 @@ Field downsample(const Field& f, int factor) {
 
 // Scan voxel sampling: bone (value >= level) fraction per grid voxel, of
 // the scan or, with `flip`, of its mirror (the array flipped, the geometry kept).
-Field fraction_field(const Volume& ct, double spacing, double level, const ScanMirror* flip = nullptr) {
-  const Geometry& g = ct.geom;
+// The fraction of voxels at or above level, on a grid of the given spacing
+// whose voxel centres lie on multiples of spacing (a scan cropped or padded
+// keeps its bins). g places the voxels ct.hu: ct.geom, or the scan seen in
+// its own frame (ScanFrame).
+Field fraction_field(const Volume& ct, const Geometry& g, double spacing, double level, const ScanMirror* flip) {
   Vec3 lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30};
   for (int c = 0; c < 8; ++c) {
     const Vec3 p = g.index_to_lps((c & 1) ? g.size[0] - 0.5 : -0.5, (c & 2) ? g.size[1] - 0.5 : -0.5, (c & 4) ? g.size[2] - 0.5 : -0.5);
@@ -257,7 +260,7 @@ Field fraction_field(const Volume& ct, double spacing, double level, const ScanM
       for (int J = 0; J < f.grid.n[1]; ++J)
         for (int I = 0; I < f.grid.n[0]; ++I) {
           const Vec3 q = grid_point(f.grid, I, J, static_cast<double>(K));
-          const double h = interpolate(ct, flip ? flip->apply(q) : q);
+          const double h = interpolate(g, ct.hu.data(), flip ? flip->apply(q) : q);
           if (!std::isnan(h)) f.v[f.grid.linear(I, J, static_cast<int>(K))] = h >= level ? 1.0f : 0.0f;
         }
   }
@@ -518,7 +521,7 @@ Pose mirror(const Pose& p, const ScanMirror& s) {
 }
 
 Field bone_fraction(const Volume& ct, double spacing_mm, double bone_hu, double blur_mm) {
-  Field f = fraction_field(ct, spacing_mm, bone_hu);
+  Field f = fraction_field(ct, ct.geom, spacing_mm, bone_hu, nullptr);
   blur(f, blur_mm);
   return f;
 }
@@ -626,20 +629,84 @@ Fit combine_mirror_fits(const Fit& a, const Fit& b_mirrored, const ScanMirror& s
   return out;
 }
 
+ScanFrame scan_frame(const Geometry& g) {
+  ScanFrame f;
+  f.geom = g;
+  f.centre = g.index_to_lps(0.5 * (static_cast<double>(g.size[0]) - 1), 0.5 * (static_cast<double>(g.size[1]) - 1),
+                            0.5 * (static_cast<double>(g.size[2]) - 1));
+  // P: each array axis along the LPS axis it is nearest to, with its sign.
+  double P[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  bool used[3] = {false, false, false};
+  for (int c = 0; c < 3; ++c) {
+    int r = 0;
+    for (int k = 1; k < 3; ++k)
+      if (std::abs(g.direction[3 * k + c]) > std::abs(g.direction[3 * r + c])) r = k;
+    if (used[r]) return f;  // no distinct nearest axes (a turn near 45 degrees): the LPS frame
+    used[r] = true;
+    P[3 * r + c] = g.direction[3 * r + c] < 0 ? -1.0 : 1.0;
+  }
+  // q = D P^T turns the frame onto the scan: world = q (x - centre) + centre.
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) {
+      double acc = 0;
+      for (int c = 0; c < 3; ++c) acc += g.direction[3 * r + c] * P[3 * k + c];
+      f.q[3 * r + k] = acc;
+    }
+  bool turned = false;
+  for (int i = 0; i < 9; ++i) turned = turned || f.q[i] != (i % 4 == 0 ? 1.0 : 0.0);
+  if (!turned) return f;  // stored along the axes: the scan's geometry as it is
+  for (int i = 0; i < 9; ++i) f.geom.direction[i] = P[i];
+  f.geom.origin = f.from_world(g.origin);
+  return f;
+}
+
+Vec3 ScanFrame::to_world(const Vec3& x) const {
+  const Vec3 d = x - centre;
+  return {q[0] * d[0] + q[1] * d[1] + q[2] * d[2] + centre[0], q[3] * d[0] + q[4] * d[1] + q[5] * d[2] + centre[1],
+          q[6] * d[0] + q[7] * d[1] + q[8] * d[2] + centre[2]};
+}
+
+Vec3 ScanFrame::from_world(const Vec3& p) const {
+  const Vec3 d = p - centre;
+  return {q[0] * d[0] + q[3] * d[1] + q[6] * d[2] + centre[0], q[1] * d[0] + q[4] * d[1] + q[7] * d[2] + centre[1],
+          q[2] * d[0] + q[5] * d[1] + q[8] * d[2] + centre[2]};
+}
+
+Pose ScanFrame::to_world(const Pose& p) const {
+  // A_world = q A; its rotation R = q A M / scale (M = diag(1, +-1, +-1) = M^-1).
+  const Affine A = affine(p);
+  double R[9];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      double acc = 0;
+      for (int k = 0; k < 3; ++k) acc += q[3 * r + k] * A.A[3 * k + c];
+      const double M = c == 0 ? 1.0 : (c == 1 ? ((p.flip & 1) ? -1.0 : 1.0) : ((p.flip & 2) ? -1.0 : 1.0));
+      R[3 * r + c] = acc * M / p.scale;
+    }
+  Pose w = p;
+  w.t = to_world(p.t);
+  set_angles(w, R);
+  return w;
+}
+
 Fit fit_ct(const Volume& ct, double bone_hu) {
   const Atlas& a = shipped();
   if (a.cases == 0) return {};
   const auto t0 = std::chrono::steady_clock::now();
   DebugLap lap("MANDISYM_DEBUG_ATLAS", "atlas");
+  // Fitted in the scan's own frame: the same voxels turned in their file
+  // about their centre give the same fit, turned (docs/atlas.md, "The scan's
+  // frame").
+  const ScanFrame frame = scan_frame(ct.geom);
   // The scan and its mirror fitted side by side (the search is mostly serial).
-  const ScanMirror s = lr_mirror(ct.geom);
+  const ScanMirror s = lr_mirror(frame.geom);
   // Each fit gets half of the OpenMP threads (two teams of all of them
   // oversubscribe the cores: 0.70 s against 0.45 s at 512^2 x 300 on 2 cores).
   const int threads = std::max(1, omp_get_max_threads() / 2);
   auto fit_field = [&](const ScanMirror* flip) {
     const int before = omp_get_max_threads();
     omp_set_num_threads(threads);
-    Field f = fraction_field(ct, a.grid.spacing, bone_hu, flip);
+    Field f = fraction_field(ct, frame.geom, a.grid.spacing, bone_hu, flip);
     blur(f, kFieldBlurMm);
     Fit out = fit(a, f);
     omp_set_num_threads(before);
@@ -648,6 +715,8 @@ Fit fit_ct(const Volume& ct, double bone_hu) {
   std::future<Fit> of_mirror = std::async(threads::side_task_launch(), fit_field, &s);
   const Fit direct = fit_field(nullptr);
   Fit r = combine_mirror_fits(direct, of_mirror.get(), s);
+  r.pose = frame.to_world(r.pose);
+  r.mirrored = frame.to_world(r.mirrored);
   lap("bone fraction and fit, scan and mirror");
   if (lap.on())
     std::fprintf(stderr, "  atlas: ncc %.3f (mirrored %.3f), coverage %.2f, scale %.2f, centre %.1f %.1f %.1f\n", r.ncc, r.mirrored_ncc,

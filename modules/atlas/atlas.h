@@ -112,12 +112,29 @@ Field bone_fraction(const Volume& ct, double spacing_mm, double bone_hu, double 
 // The same for a binary mask (fraction of the grid voxel covered).
 Field mask_fraction(const Mask& m, double spacing_mm, double blur_mm);
 
+// A scan's own frame: LPS turned about the grid's centre so that the array
+// axes lie along the LPS axes nearest to them (world = q (x - centre) +
+// centre; q the identity for a scan stored along the LPS axes). geom is the
+// scan's geometry in the frame. When two array axes are nearest to one LPS
+// axis (a turn near 45 degrees) the frame is LPS itself.
+struct ScanFrame {
+  double q[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  Vec3 centre{0, 0, 0};
+  Geometry geom;
+  Vec3 to_world(const Vec3& x) const;
+  Vec3 from_world(const Vec3& p) const;
+  Pose to_world(const Pose& p) const;
+};
+ScanFrame scan_frame(const Geometry& g);
+
 // Fits atlas to a scan's bone fraction field (bone_fraction at the atlas's
 // spacing, blurred by kFieldBlurMm).
 Fit fit(const Atlas& atlas, const Field& scan_bone);
 // The shipped atlas fitted to a scan and to its mirror (lr_mirror), the two
 // poses combined (docs/atlas.md, "Mirror symmetrisation"): the fit of a
-// mirrored scan is then the mirror of the fit.
+// mirrored scan is then the mirror of the fit. Fitted in the scan's frame,
+// then carried to LPS: the same voxels turned in their file about their
+// centre give the same fit, turned.
 Fit fit_ct(const Volume& ct, double bone_hu);
 
 // Two fits of one scan combined: fits `a` (the scan) and `b_mirrored` (its

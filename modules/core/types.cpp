@@ -27,8 +27,9 @@ Vec3 Geometry::lps_to_index(const Vec3& p) const {
   return idx;
 }
 
-double interpolate(const Volume& volume, const Vec3& lps) {
-  const Geometry& g = volume.geom;
+double interpolate(const Volume& volume, const Vec3& lps) { return interpolate(volume.geom, volume.hu.data(), lps); }
+
+double interpolate(const Geometry& g, const float* hu, const Vec3& lps) {
   const Vec3 q = g.lps_to_index(lps);
   std::size_t i0[3];
   double f[3];
@@ -44,7 +45,7 @@ double interpolate(const Volume& volume, const Vec3& lps) {
     for (int dy = 0; dy < 2; ++dy)
       for (int dx = 0; dx < 2; ++dx) {
         const double w = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
-        if (w > 0) v += w * volume.hu[g.linear(i0[0] + dx, i0[1] + dy, i0[2] + dz)];
+        if (w > 0) v += w * hu[g.linear(i0[0] + dx, i0[1] + dy, i0[2] + dz)];
       }
   return v;
 }

@@ -44,6 +44,9 @@ struct Volume {
 
 // Trilinear HU at an LPS point; NaN outside the grid (between voxel centres).
 double interpolate(const Volume& volume, const Vec3& lps);
+// The same for voxel values hu laid out on grid g (a volume's voxels seen
+// through another geometry, e.g. the scan's own frame: atlas::fit_ct).
+double interpolate(const Geometry& g, const float* hu, const Vec3& lps);
 
 // Binary mask (0/1) on a grid.
 struct Mask {

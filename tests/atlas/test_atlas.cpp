@@ -199,6 +199,62 @@ TEST(Atlas, RealScanFitsWhereTheContourIsAndMirrorsWithTheScan) {
   EXPECT_NEAR(m.ncc, f.ncc, 1e-12);
 }
 
+// Storing a scan differently moves nothing but its file's geometry: the same
+// voxels turned 10 degrees in their orientation (about their centre) must be
+// fitted by the same placement, turned (docs/atlas.md, "The scan's frame").
+// Fitted on LPS axes, that turn moved the placement by up to 0.9 mm and,
+// through the zone, Cr_L of openkbp-train pt_36 by 20.8 mm.
+TEST(Atlas, FitTurnsWithTheScansOrientation) {
+  const std::string dir = std::string(MANDISYM_SHARED_DATA) + "/openkbp/pt_245";
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const auto c = ms::testing::load_openkbp(dir);
+  const Fit f = fit_ct(c.ct, 250.0);
+  ASSERT_TRUE(f.found);
+  const Geometry& g = c.ct.geom;
+  const Vec3 pivot = g.index_to_lps(0.5 * (g.size[0] - 1.0), 0.5 * (g.size[1] - 1.0), 0.5 * (g.size[2] - 1.0));
+  const double cs = std::cos(10 * kDeg), sn = std::sin(10 * kDeg);
+  const double T[9] = {cs, -sn, 0, sn, cs, 0, 0, 0, 1};
+  auto turn = [&](const Vec3& p) {
+    const Vec3 d = p - pivot;
+    return Vec3{T[0] * d[0] + T[1] * d[1] + pivot[0], T[3] * d[0] + T[4] * d[1] + pivot[1], d[2] + pivot[2]};
+  };
+  Volume stored = c.ct;
+  stored.geom.origin = turn(g.origin);
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col) {
+      double acc = 0;
+      for (int k = 0; k < 3; ++k) acc += T[3 * r + k] * g.direction[3 * k + col];
+      stored.geom.direction[3 * r + col] = acc;
+    }
+  const Fit m = fit_ct(stored, 250.0);
+  ASSERT_TRUE(m.found);
+  EXPECT_NEAR(m.ncc, f.ncc, 1e-6);
+  EXPECT_NEAR(m.pose.scale, f.pose.scale, 1e-6);
+  for (const Vec3& a : {Vec3{0, 0, 0}, Vec3{40, 0, 30}, Vec3{-40, 20, 30}, Vec3{0, -50, -20}})
+    EXPECT_LT(distance(m.pose.apply(a), turn(f.pose.apply(a))), 1e-3) << a[0] << " " << a[1] << " " << a[2];
+}
+
+// A scan stored along the LPS axes (any signed permutation) is its own frame.
+TEST(Atlas, ScanStoredAlongTheAxesIsItsOwnFrame) {
+  Geometry g;
+  g.size = {100, 120, 80};
+  g.spacing = {0.9, 0.9, 2.5};
+  g.origin = {-40, 20, -100};
+  g.direction = {-1, 0, 0, 0, 0, 1, 0, 1, 0};
+  const ScanFrame f = scan_frame(g);
+  for (int i = 0; i < 9; ++i) EXPECT_EQ(f.q[i], i % 4 == 0 ? 1.0 : 0.0);
+  EXPECT_TRUE(f.geom.same_grid(g, 1e-12));
+  // A turned scan's frame turns its poses with it.
+  const double c = std::cos(0.3), s = std::sin(0.3);
+  g.direction = {c, -s, 0, s, c, 0, 0, 0, 1};
+  const ScanFrame t = scan_frame(g);
+  EXPECT_LT(distance(t.to_world(t.geom.index_to_lps(3, 4, 5)), g.index_to_lps(3, 4, 5)), 1e-9);
+  Pose p;
+  p.t = {5, -7, 9}, p.pitch = 0.2, p.yaw = -0.1, p.roll = 0.05, p.scale = 1.1, p.flip = 1;
+  const Pose w = t.to_world(p);
+  for (const Vec3& a : {Vec3{10, 0, 0}, Vec3{0, 20, -5}, Vec3{-30, 4, 8}}) EXPECT_LT(distance(w.apply(a), t.to_world(p.apply(a))), 1e-9);
+}
+
 // The scan mirror (an array flip about the scan's centre) as a pose map: the
 // mirrored placement maps the atlas's own mirror image where the scan
 // mirror takes the placement, and mirroring twice gives the pose back.
