@@ -205,11 +205,10 @@ Field downsample(const Field& f, int factor) {
 }
 
 // Scan voxel sampling: bone (value >= level) fraction per grid voxel, of
-// the scan or, with `flip`, of its mirror (the array flipped, the geometry kept).
-// The fraction of voxels at or above level, on a grid of the given spacing
-// whose voxel centres lie on multiples of spacing (a scan cropped or padded
-// keeps its bins). g places the voxels ct.hu: ct.geom, or the scan seen in
-// its own frame (ScanFrame).
+// the scan or, with `flip`, of its mirror (the array flipped, the geometry
+// kept), on a grid of the given spacing whose voxel centres lie on multiples
+// of spacing (a scan cropped or padded keeps its bins). g places the voxels
+// ct.hu: ct.geom, or the scan seen in its own frame (ScanFrame).
 Field fraction_field(const Volume& ct, const Geometry& g, double spacing, double level, const ScanMirror* flip) {
   Vec3 lo{1e30, 1e30, 1e30}, hi{-1e30, -1e30, -1e30};
   for (int c = 0; c < 8; ++c) {
@@ -502,23 +501,27 @@ ScanMirror lr_mirror(const Geometry& g) {
   return s;
 }
 
-Pose mirror(const Pose& p, const ScanMirror& s) {
-  // A' = m A X with X = diag(-1, 1, 1), the atlas frame's own mirror; A' =
-  // scale R' M with R' = m R X a rotation (two reflections), M unchanged.
+// The pose p carried by the linear map m (row-major) of the scan's space,
+// its centre moved to t: A' = m A X, with X = diag(-1, 1, 1) (the atlas
+// frame's own mirror) when m is a reflection, so that A' = scale R' M with R'
+// a rotation and M (p's flips) unchanged.
+static Pose carried(const Pose& p, const double m[9], const Vec3& t, bool reflection) {
   const Affine A = affine(p);
   double R[9];
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) {
       double acc = 0;
-      for (int k = 0; k < 3; ++k) acc += s.m[3 * r + k] * A.A[3 * k + c];
-      const double M = c == 0 ? -1.0 : (c == 1 ? ((p.flip & 1) ? -1.0 : 1.0) : ((p.flip & 2) ? -1.0 : 1.0));
+      for (int k = 0; k < 3; ++k) acc += m[3 * r + k] * A.A[3 * k + c];
+      const double M = c == 0 ? (reflection ? -1.0 : 1.0) : (c == 1 ? ((p.flip & 1) ? -1.0 : 1.0) : ((p.flip & 2) ? -1.0 : 1.0));
       R[3 * r + c] = acc * M / p.scale;
     }
   Pose q = p;
-  q.t = s.apply(p.t);
+  q.t = t;
   set_angles(q, R);
   return q;
 }
+
+Pose mirror(const Pose& p, const ScanMirror& s) { return carried(p, s.m, s.apply(p.t), true); }
 
 Field bone_fraction(const Volume& ct, double spacing_mm, double bone_hu, double blur_mm) {
   Field f = fraction_field(ct, ct.geom, spacing_mm, bone_hu, nullptr);
@@ -672,22 +675,7 @@ Vec3 ScanFrame::from_world(const Vec3& p) const {
           q[2] * d[0] + q[5] * d[1] + q[8] * d[2] + centre[2]};
 }
 
-Pose ScanFrame::to_world(const Pose& p) const {
-  // A_world = q A; its rotation R = q A M / scale (M = diag(1, +-1, +-1) = M^-1).
-  const Affine A = affine(p);
-  double R[9];
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) {
-      double acc = 0;
-      for (int k = 0; k < 3; ++k) acc += q[3 * r + k] * A.A[3 * k + c];
-      const double M = c == 0 ? 1.0 : (c == 1 ? ((p.flip & 1) ? -1.0 : 1.0) : ((p.flip & 2) ? -1.0 : 1.0));
-      R[3 * r + c] = acc * M / p.scale;
-    }
-  Pose w = p;
-  w.t = to_world(p.t);
-  set_angles(w, R);
-  return w;
-}
+Pose ScanFrame::to_world(const Pose& p) const { return carried(p, q, to_world(p.t), false); }
 
 Fit fit_ct(const Volume& ct, double bone_hu) {
   const Atlas& a = shipped();
