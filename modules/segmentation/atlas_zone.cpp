@@ -125,4 +125,38 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
   return out;
 }
 
+std::vector<std::uint8_t> extend_to_joint_space(const std::vector<std::uint8_t>& mask, const std::vector<std::uint8_t>& bone,
+                                                const std::array<std::size_t, 3>& dims, int up_axis, int up_step, double up_mm,
+                                                const std::function<bool(std::size_t)>& in_room) {
+  std::vector<std::uint8_t> out = mask;
+  const std::size_t stride[3] = {1, dims[0], dims[0] * dims[1]};
+  const long n_up = static_cast<long>(dims[up_axis]);
+  const long max_bone = static_cast<long>(std::floor(kZoneRimMm / up_mm + 1e-9));
+  const long max_gap = static_cast<long>(std::floor(kJointGapMaxMm / up_mm + 1e-9));
+  std::vector<std::size_t> top;
+  for (std::size_t i = 0; i < mask.size(); ++i) {
+    if (!mask[i]) continue;
+    const long at = static_cast<long>(i / stride[up_axis] % dims[up_axis]);
+    auto voxel = [&](long steps) -> std::ptrdiff_t {  // steps up from i, or -1 outside the grid
+      const long c = at + up_step * steps;
+      if (c < 0 || c >= n_up) return -1;
+      return static_cast<std::ptrdiff_t>(i) + up_step * steps * static_cast<std::ptrdiff_t>(stride[up_axis]);
+    };
+    // 1. The bone above the mask's top voxel in this column, up to the gap.
+    top.clear();
+    long s = 1;
+    for (std::ptrdiff_t q; (q = voxel(s)) >= 0 && bone[q] && !mask[q]; ++s) top.push_back(static_cast<std::size_t>(q));
+    if (top.empty() || static_cast<long>(top.size()) > max_bone || voxel(s) < 0 || mask[voxel(s)]) continue;
+    // 2. The gap: non-bone, then bone again (the fossa's roof) within kJointGapMaxMm.
+    const long gap_from = s;
+    for (std::ptrdiff_t q; (q = voxel(s)) >= 0 && !bone[q] && s - gap_from < max_gap; ++s) {}
+    const std::ptrdiff_t roof = voxel(s);
+    if (roof < 0 || !bone[roof] || mask[roof]) continue;
+    // 3. The condyle's top: that bone, where a process may stand.
+    if (std::all_of(top.begin(), top.end(), in_room))
+      for (std::size_t q : top) out[q] = 1;
+  }
+  return out;
+}
+
 }  // namespace ms::segmentation

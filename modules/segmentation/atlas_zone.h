@@ -76,4 +76,29 @@ std::vector<std::uint8_t> add_zone_rim(const std::vector<std::uint8_t>& mask, co
                                        const std::array<std::size_t, 3>& dims, const std::array<double, 3>& spacing,
                                        const std::array<std::array<std::size_t, 2>, 3>& faces);
 
+// The superior joint space, seen along the head's vertical. Where the voxels
+// do not resolve the joint space across (coarse pixels: the zone and its rim
+// end short of a condylar head welded to its fossa's roof by partial volume)
+// the slices may still resolve it along the vertical: a column of voxels
+// rising from the mask's top runs through bone, then through a gap of
+// non-bone at most kJointGapMaxMm high, then into bone again (the fossa's
+// roof). The bone between the mask and that gap is the condyle's top: the
+// adult superior joint space is 2.5 +/- 0.5 mm (Ikeda & Kawamura 2009, limited
+// cone-beam CT of 22 joints), so a gap up to twice it above the condyle is
+// the joint, and a longer one (the brain over a fossa's roof the zone cut
+// into, the temporalis over a coronoid) is not.
+constexpr double kJointGapMaxMm = 5.0;
+
+// mask: the zone, its appendices and rim; bone as for atlas_zone_mask; dims
+// the grid; up_axis (0-2) and up_step (+1 or -1): the grid axis nearest to the
+// placed atlas's superior and its direction; up_mm: that axis's spacing;
+// in_room: where a process may stand (ProcessRoom, segmentation.cpp). Returns
+// the mask plus, in each column along up_axis whose first voxel above the
+// mask is bone, the bone up to a gap that satisfies the rule above, when that
+// bone is at most kZoneRimMm high (the similarity fit's tolerance, as for the
+// rim) and wholly in the room.
+std::vector<std::uint8_t> extend_to_joint_space(const std::vector<std::uint8_t>& mask, const std::vector<std::uint8_t>& bone,
+                                                const std::array<std::size_t, 3>& dims, int up_axis, int up_step, double up_mm,
+                                                const std::function<bool(std::size_t)>& in_room);
+
 }  // namespace ms::segmentation

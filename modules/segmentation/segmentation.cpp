@@ -1878,12 +1878,23 @@ static std::vector<std::size_t> body_profile(const std::vector<float>& hu, const
   return body;
 }
 
+// The grid axis whose direction is nearest to the LPS direction `dir`, and
+// the sign (+1 or -1) of an index step along `dir`.
+static std::pair<int, int> grid_axis_nearest(const Geometry& g, const Vec3& dir) {
+  int best = 0;
+  double best_cos = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double c = g.direction[a] * dir[0] + g.direction[3 + a] * dir[1] + g.direction[6 + a] * dir[2];
+    if (std::abs(c) > std::abs(best_cos)) best = a, best_cos = c;
+  }
+  return {best, best_cos >= 0 ? 1 : -1};
+}
+
 // The grid axis whose direction is nearest to LPS axis `lps` (0 L, 1 P, 2 S).
 static int grid_axis_along(const Geometry& g, int lps) {
-  int best = 0;
-  for (int a = 1; a < 3; ++a)
-    if (std::abs(g.direction[3 * lps + a]) > std::abs(g.direction[3 * lps + best])) best = a;
-  return best;
+  Vec3 e{0, 0, 0};
+  e[lps] = 1;
+  return grid_axis_nearest(g, e).first;
 }
 
 // Where the scanned body ends (docs/segmentation.md, "The scanned body"): a
@@ -2024,7 +2035,8 @@ static std::array<std::array<std::size_t, 2>, 3> scanned_faces(const std::vector
 // Identification and separation by the atlas (docs/segmentation.md): within
 // the placed atlas's box, (1) the bone mask at the bone threshold, (2) the
 // atlas's mandible probability at each bone voxel, (3) the zone and its free
-// appendices (atlas_zone_mask) and its rim (add_zone_rim), (4) on scans that resolve the joint space,
+// appendices (atlas_zone_mask), its rim (add_zone_rim) and the condyles' tops
+// up to a joint space the slices show (extend_to_joint_space), (4) on scans that resolve the joint space,
 // the zone cut where the image separates it from other bone
 // (zone_cut_by_watershed), (5) the surface level, closing and hole filling of
 // finalize().
@@ -2063,6 +2075,13 @@ static Result segment_by_atlas(const Volume& ct, const Options& opt, const atlas
   } else {
     mask = add_zone_rim(mask, bone, not_soft, p, cg.size, cg.spacing, scanned_faces(hu, cg, mask, r.offset_hu));
     lap("atlas: zone's rim");
+    const auto [up_axis, up_step] = grid_axis_nearest(cg, fit.pose.superior());
+    const std::size_t before = static_cast<std::size_t>(std::count(mask.begin(), mask.end(), 1));
+    mask = extend_to_joint_space(mask, bone, cg.size, up_axis, up_step, cg.spacing[up_axis], std::cref(room));
+    lap("atlas: up to the joint space");
+    if (std::getenv("MANDISYM_DEBUG_SEG"))
+      std::fprintf(stderr, "  zone: %zu voxels up to the joint space (grid axis %d)\n",
+                   static_cast<std::size_t>(std::count(mask.begin(), mask.end(), 1)) - before, up_axis);
   }
   if (std::find(mask.begin(), mask.end(), 1) == mask.end())
     throw Error(ExitCode::NoMandible, "no mandible found: no bone lies where the mandible atlas places the mandible (" +

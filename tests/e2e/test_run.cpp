@@ -535,9 +535,11 @@ TEST(EndToEnd, HeadsqUprightIsTheMandibleAndPassesTheGate) {
   EXPECT_EQ(r.at("parameters").at("surface_guide_level_hu").get<std::string>(), "none");
   // Against the reference made on its slices independently of the pipeline
   // (scripts/reference-headsq, docs/reference-headsq.md). Measured: Dice
-  // 0.973; Co 2.9 / 3.9, Cr 0.7 / 1.9, Go 2.5 / 3.1, Me 1.2, Pog 1.3 mm,
-  // each within 3 mm plus the reference's own uncertainty (Co 3, Cr 2.5,
-  // Go 4, Me 2, Pog 5 mm at these voxels). Before the zone's rim
+  // 0.976; Co 3.1 / 1.5, Cr 0.7 / 1.9, Go 2.4 / 3.4, Me 1.2, Pog 1.3 mm,
+  // each within 3 mm plus the reference's own uncertainty (Cr 2.5, Go 4,
+  // Me 2, Pog 5 mm at these voxels); condylion within the reference's 3 mm
+  // plus a sixth of a 3.2 mm pixel: before the condyles' tops were let up to
+  // the joint space (docs/segmentation.md, step 3) Co_R was 3.9 mm off. Before the zone's rim
   // (docs/segmentation.md, step 3) Go_L was 10.9 mm off: the zone missed
   // the left ramus's posterior border by 1-2 voxels, so the posterior
   // tangent ran a voxel forward, and Dice was 0.964.
@@ -547,7 +549,7 @@ TEST(EndToEnd, HeadsqUprightIsTheMandibleAndPassesTheGate) {
   EXPECT_GE(dice, 0.93);
   const Value ref = load(ref_dir / "reference_landmarks.json").at("landmarks");
   for (const auto& [l, tol] :
-       std::map<std::string, double>{{"Co_L", 6}, {"Co_R", 6}, {"Cr_L", 5.5}, {"Cr_R", 5.5}, {"Go_L", 7}, {"Go_R", 7}, {"Me", 5}, {"Pog", 8}}) {
+       std::map<std::string, double>{{"Co_L", 3.5}, {"Co_R", 3.5}, {"Cr_L", 5.5}, {"Cr_R", 5.5}, {"Go_L", 7}, {"Go_R", 7}, {"Me", 5}, {"Pog", 8}}) {
     const Value& p = r.at("landmarks").at(l);
     ASSERT_FALSE(p.is_null()) << l;
     double d2 = 0;

@@ -143,3 +143,67 @@ TEST(AtlasZone, TakesAProcessPastTheSupportOnlyWithinItsRoom) {
   const auto apart = atlas_zone_mask(h.bone, h.p, h.dims, [](std::size_t) { return true; });
   for (std::size_t x = 12; x <= 15; ++x) EXPECT_EQ(apart[h.at(x, 5, 5)], 0) << x;
 }
+
+// The superior joint space along the vertical (extend_to_joint_space): a
+// column through a condyle the zone cut short, the bone above its edge, a
+// gap and the fossa's roof. At 1.5 mm slices kZoneRimMm (5 mm) is 3 voxels of
+// bone and kJointGapMaxMm (5 mm) 3 voxels of gap.
+namespace {
+
+struct Column {
+  std::array<std::size_t, 3> dims{3, 3, 24};
+  std::vector<std::uint8_t> mask = std::vector<std::uint8_t>(3 * 3 * 24, 0);
+  std::vector<std::uint8_t> bone = std::vector<std::uint8_t>(3 * 3 * 24, 0);
+  std::size_t at(std::size_t z) const { return 1 + 3 * (1 + 3 * z); }  // the middle column
+  // mask below `edge`, bone from `edge` up to `gap` (exclusive), non-bone for
+  // `gap_voxels`, then bone (the roof) to the top unless roof is false.
+  Column(std::size_t edge, std::size_t gap, std::size_t gap_voxels, bool roof = true) {
+    for (std::size_t z = 0; z < dims[2]; ++z) {
+      const bool in_gap = z >= gap && z < gap + gap_voxels;
+      bone[at(z)] = z < gap || (!in_gap && roof);
+      mask[at(z)] = z < edge;
+    }
+  }
+  std::vector<std::uint8_t> extended(const std::function<bool(std::size_t)>& room = [](std::size_t) { return true; }) const {
+    return ms::segmentation::extend_to_joint_space(mask, bone, dims, 2, +1, 1.5, room);
+  }
+};
+
+}  // namespace
+
+TEST(AtlasZone, TakesTheCondylesTopUpToTheJointSpace) {
+  const Column c(/*edge=*/8, /*gap=*/10, /*gap_voxels=*/2);
+  const auto m = c.extended();
+  EXPECT_EQ(m[c.at(8)], 1);
+  EXPECT_EQ(m[c.at(9)], 1);
+  for (std::size_t z = 10; z < 24; ++z) EXPECT_EQ(m[c.at(z)], 0) << "the gap and the fossa's roof stay out: " << z;
+}
+
+TEST(AtlasZone, LeavesBoneWithNoRoofOrTooFarBelowIt) {
+  // Brain over a fossa's roof the zone cut into: no bone above the gap.
+  EXPECT_EQ(Column(8, 10, 2, /*roof=*/false).extended()[Column(8, 10, 2).at(8)], 0);
+  // A gap longer than kJointGapMaxMm (4 voxels = 6 mm): not the joint space.
+  EXPECT_EQ(Column(8, 10, 4).extended()[Column(8, 10, 4).at(8)], 0);
+  // Bone 4 voxels (6 mm) above the zone's edge: more than kZoneRimMm.
+  EXPECT_EQ(Column(8, 12, 2).extended()[Column(8, 12, 2).at(8)], 0);
+  // Up to 3 voxels (4.5 mm) and a 3-voxel gap (4.5 mm): added.
+  EXPECT_EQ(Column(8, 11, 3).extended()[Column(8, 11, 3).at(10)], 1);
+}
+
+TEST(AtlasZone, TakesTheJointSpaceOnlyWhereAProcessMayStand) {
+  const Column c(8, 10, 2);
+  const std::size_t high = c.at(9);
+  const auto m = c.extended([&](std::size_t i) { return i != high; });
+  EXPECT_EQ(m[c.at(8)], 0) << "all of the column's bone, or none";
+  EXPECT_EQ(m[high], 0);
+}
+
+TEST(AtlasZone, FollowsTheHeadsSuperiorDownTheGrid) {
+  // The same column stored upside down (superior = decreasing z).
+  Column up(8, 10, 2), down(8, 10, 2);
+  for (std::size_t z = 0; z < 24; ++z) down.mask[down.at(z)] = up.mask[up.at(23 - z)], down.bone[down.at(z)] = up.bone[up.at(23 - z)];
+  const auto m = ms::segmentation::extend_to_joint_space(down.mask, down.bone, down.dims, 2, -1, 1.5, [](std::size_t) { return true; });
+  EXPECT_EQ(m[down.at(15)], 1);
+  EXPECT_EQ(m[down.at(14)], 1);
+  EXPECT_EQ(m[down.at(13)], 0);
+}
