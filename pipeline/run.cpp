@@ -272,7 +272,14 @@ void landmarks_stage(const Volume& ct, const segmentation::Result& seg, const Me
   landmarks::PalateOptions po;
   po.plate_hu += seg.offset_hu;  // thresholds follow the scan's calibration offset
   po.air_hu += seg.offset_hu;
-  if (seg.atlas.found) po.atlas_superior = seg.atlas.pose.superior();
+  if (seg.atlas.found) {
+    po.atlas_superior = seg.atlas.pose.superior();
+    static const atlas::ProcessTops tops = atlas::process_tops(atlas::shipped());
+    for (double side : {1.0, -1.0}) {
+      lo.atlas_condyles.push_back(seg.atlas.pose.apply({side * tops.condyle[0], tops.condyle[1], tops.condyle[2]}));
+      lo.atlas_coronoids.push_back(seg.atlas.pose.apply({side * tops.coronoid[0], tops.coronoid[1], tops.coronoid[2]}));
+    }
+  }
   S.landmarks = landmarks::detect_in_head_frame(ct, mesh, lo, po, &S.palate, &S.head_frame);
   S.landmarks_off_surface_mm = 0;  // eight queries: cheaper than building an index
   for (const auto& [name, p] : S.landmarks.landmarks.points)

@@ -476,6 +476,43 @@ double sigmoid_notch_height(const Atlas& a) {
   return a.grid.origin[2] + a.grid.spacing * k;
 }
 
+ProcessTops process_tops(const Atlas& a) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  ProcessTops out{{nan, nan, nan}, {nan, nan, nan}};
+  const double notch = sigmoid_notch_height(a);
+  if (std::isnan(notch)) return out;
+  // 1. The mean mandible's x > 0 half above the notch, and its pieces.
+  const Grid& g = a.grid;
+  std::vector<std::uint8_t> in(g.count(), 0);
+  for (int k = 0; k < g.n[2]; ++k)
+    for (int j = 0; j < g.n[1]; ++j)
+      for (int i = 0; i < g.n[0]; ++i)
+        in[g.linear(i, j, k)] = g.origin[0] + g.spacing * i > 0 && g.origin[2] + g.spacing * k >= notch - 1e-9 &&
+                                a.mandible[g.linear(i, j, k)] >= 0.5f;
+  std::vector<std::uint32_t> label(in.size());
+  const Components pieces = label_components(in.data(), {std::size_t(g.n[0]), std::size_t(g.n[1]), std::size_t(g.n[2])},
+                                             /*fully_connected=*/true, 0, label.data());
+  if (pieces.count < 2) return out;
+  // 2. Each of the two largest pieces' top: the centroid of its highest level.
+  Vec3 top[2];
+  for (std::uint32_t l = 1; l <= 2; ++l) {
+    int highest = -1;
+    for (std::size_t v = 0; v < label.size(); ++v)
+      if (label[v] == l) highest = std::max(highest, static_cast<int>(v / (std::size_t(g.n[0]) * g.n[1])));
+    Vec3 sum{0, 0, 0};
+    double n = 0;
+    for (int j = 0; j < g.n[1]; ++j)
+      for (int i = 0; i < g.n[0]; ++i)
+        if (label[g.linear(i, j, highest)] == l) sum = sum + Vec3{g.origin[0] + g.spacing * i, g.origin[1] + g.spacing * j, 0.0}, n += 1;
+    top[l - 1] = {sum[0] / n, sum[1] / n, g.origin[2] + g.spacing * highest};
+  }
+  // 3. The posterior one (+y) is the condyle.
+  const bool first_behind = top[0][1] > top[1][1];
+  out.condyle = first_behind ? top[0] : top[1];
+  out.coronoid = first_behind ? top[1] : top[0];
+  return out;
+}
+
 Vec3 ScanMirror::apply(const Vec3& p) const {
   return {m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + b[0], m[3] * p[0] + m[4] * p[1] + m[5] * p[2] + b[1],
           m[6] * p[0] + m[7] * p[1] + m[8] * p[2] + b[2]};

@@ -183,6 +183,17 @@ class MandiblePrior {
 // atlas: 30 mm (condyle top 39 mm, coronoid top 33 mm; 3 mm levels).
 double sigmoid_notch_height(const Atlas& atlas);
 
+// The tops of the atlas's mean condyle and coronoid process on its x > 0 half
+// (atlas frame, mm; the x < 0 half is their mirror, x -> -x): the two largest
+// pieces (26-connected) of the mean mandible (p >= 0.5) above the sigmoid
+// notch, the posterior one the condyle; each top is the centroid of the
+// piece's voxels on its highest level. NaN coordinates when the halves never
+// split. Measured on the shipped atlas: 30 mm apart antero-posteriorly.
+struct ProcessTops {
+  Vec3 condyle, coronoid;
+};
+ProcessTops process_tops(const Atlas& atlas);
+
 // The atlas compiled into this binary.
 const Atlas& shipped();
 

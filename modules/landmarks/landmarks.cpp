@@ -891,8 +891,22 @@ struct Processes {
   const char* why_co = nullptr;
   const char* why_cr = nullptr;
 };
+// Whether vertex v lies nearer, antero-posteriorly, to the placed atlas's
+// condyle top than to its coronoid top on side s (Options::atlas_condyles);
+// false without the atlas. The similarity fit places them within a few
+// millimetres; they stand ~30 mm apart (atlas::process_tops).
+bool nearer_the_atlas_condyle(const Frame& f, double s, std::size_t v, const Options& opt) {
+  auto on_side = [&](const std::vector<Vec3>& tops) -> std::optional<double> {
+    for (const Vec3& t : tops)
+      if (s * dot(t - f.origin, f.e_ml) > 0) return dot(t - f.origin, f.e_ap);
+    return std::nullopt;
+  };
+  const std::optional<double> co = on_side(opt.atlas_condyles), cr = on_side(opt.atlas_coronoids);
+  return co && cr && std::abs(f.A[v] - *co) < std::abs(f.A[v] - *cr);
+}
+
 Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>& ext, const std::function<int(int)>& apex,
-                               const std::function<int(int, int)>& climb) {
+                               const std::function<int(int, int)>& climb, const Options& opt) {
   const auto &U = f.U, &A = f.A, &H = f.H;
   Processes out;
   auto on_side = [&](std::size_t v) { return s * U[v] > kSideFraction * f.umax; };
@@ -934,11 +948,17 @@ Processes condyle_and_coronoid(const Frame& f, double s, const std::vector<int>&
                  H[t]);
   }
   const std::size_t c = static_cast<std::size_t>(co);
+  if (std::getenv("MANDISYM_DEBUG_LANDMARKS"))
+    std::fprintf(stderr, "condyle s=%+.0f: %s, depth from the posterior border %.1f mm, over its section at %.2f, %s\n", s,
+                 cr >= 0 ? "a pair" : "one process", depth_from_posterior_border(f, s, c), position_over_section(f, s, c),
+                 opt.atlas_condyles.empty() ? "no atlas" : (nearer_the_atlas_condyle(f, s, c, opt) ? "nearer the atlas's condyle" : "nearer the atlas's coronoid"));
   // The condyle caps the posterior border: a process more than
   // kCondyleMaxDepthMm in front of it, over the front half of the ramus
-  // (kCoronoidFrontFraction), is the coronoid. Nor is a stump far below the
+  // (kCoronoidFrontFraction), is the coronoid, unless it stands nearer the
+  // placed atlas's condyle than its coronoid. Nor is a stump far below the
   // coronoid condylion (kCoronoidAboveCondyleMaxMm).
-  if (depth_from_posterior_border(f, s, c) > kCondyleMaxDepthMm && position_over_section(f, s, c) < kCoronoidFrontFraction) {
+  if (depth_from_posterior_border(f, s, c) > kCondyleMaxDepthMm && position_over_section(f, s, c) < kCoronoidFrontFraction &&
+      !nearer_the_atlas_condyle(f, s, c, opt)) {
     out.why_co = kCondyleNotSegmented;
     out.cr = co;
     return out;
@@ -1008,7 +1028,7 @@ Result detect(const Mesh& mesh, const Options& opt) {
   GonialSide gonial[2];  // [0] left, [1] right
   for (double s : {1.0, -1.0}) {
     const std::string suf = s > 0 ? "_L" : "_R";
-    const Processes pr = condyle_and_coronoid(f, s, ext, highest_within, climb);
+    const Processes pr = condyle_and_coronoid(f, s, ext, highest_within, climb, opt);
     if (pr.co >= 0) r.landmarks.set("Co" + suf, refine_extreme(V, pr.co, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (pr.cr >= 0) r.landmarks.set("Cr" + suf, refine_extreme(V, pr.cr, e_ml, e_ap, e_si, 1.0, opt.apex_radius_mm));
     if (pr.why_co) r.why_missing["Co" + suf] = pr.why_co;

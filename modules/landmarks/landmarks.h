@@ -31,6 +31,11 @@ struct Options {
   Vec3 superior{0, 0, 1};
   // The mandible's symmetry plane when already fitted (mandible_plane()).
   std::optional<Plane> plane;
+  // The placed atlas's mean condyle and coronoid tops (LPS mm, one of each
+  // per side; atlas::process_tops carried by the fitted pose), when the atlas
+  // was placed: which of the two a process lies nearer to antero-posteriorly
+  // decides a process the posterior-border check alone cannot (step 3).
+  std::vector<Vec3> atlas_condyles, atlas_coronoids;
 };
 
 struct Result {

@@ -109,7 +109,8 @@ TEST(Atlas, ShippedAtlasIsBuiltAndMirrorSymmetric) {
 // level 6 into a condyle to level 9 and a coronoid to level 8), the lowest
 // level of the two processes; on the shipped atlas, between the coronoid's
 // top and the ramus below, as measured (30 mm: condyle top 39, coronoid 33).
-TEST(Atlas, SigmoidNotchIsTheLowestLevelOfTheTwoProcesses) {
+namespace {
+Atlas synthetic_half_mandibles() {
   Atlas a;
   a.grid.n = {12, 12, 12};
   a.grid.spacing = 2.0;
@@ -122,12 +123,39 @@ TEST(Atlas, SigmoidNotchIsTheLowestLevelOfTheTwoProcesses) {
       if (k > 8 && !condyle) continue;
       for (int i = 7; i <= 9; ++i) a.mandible[a.grid.linear(i, j, k)] = a.mandible[a.grid.linear(11 - i, j, k)] = 0.9f;
     }
+  return a;
+}
+}  // namespace
+
+TEST(Atlas, SigmoidNotchIsTheLowestLevelOfTheTwoProcesses) {
+  Atlas a = synthetic_half_mandibles();
   EXPECT_DOUBLE_EQ(sigmoid_notch_height(a), -4.0 + 2.0 * 6);
   for (float& v : a.mandible) v = 0.0f;
   EXPECT_TRUE(std::isnan(sigmoid_notch_height(a)));
   const double shipped_notch = sigmoid_notch_height(shipped());
   EXPECT_GE(shipped_notch, 20.0);
   EXPECT_LE(shipped_notch, 35.0);
+}
+
+// The processes' tops: on the synthetic half-mandible, the condyle (behind,
+// j 7-9, to level 9) and the coronoid (in front, j 2-3, to level 8), each the
+// centroid of its top level; on the shipped atlas the condyle stands behind
+// and above the coronoid, as far apart as adult tips across the notch.
+TEST(Atlas, ProcessTopsAreTheCondyleBehindAndTheCoronoidInFront) {
+  const ProcessTops t = process_tops(synthetic_half_mandibles());
+  EXPECT_NEAR(t.condyle[0], 5.0, 1e-9);   // i 7-9: x 3, 5, 7
+  EXPECT_NEAR(t.condyle[1], 5.0, 1e-9);   // j 7-9
+  EXPECT_NEAR(t.condyle[2], 14.0, 1e-9);  // level 9
+  EXPECT_NEAR(t.coronoid[1], -6.0, 1e-9); // j 2-3
+  EXPECT_NEAR(t.coronoid[2], 12.0, 1e-9); // level 8
+  const ProcessTops s = process_tops(shipped());
+  RecordProperty("shipped_condyle_top", std::to_string(s.condyle[1]) + " " + std::to_string(s.condyle[2]));
+  RecordProperty("shipped_coronoid_top", std::to_string(s.coronoid[1]) + " " + std::to_string(s.coronoid[2]));
+  EXPECT_GT(s.condyle[0], 0.0);
+  EXPECT_GT(s.condyle[2], s.coronoid[2]);
+  // Condylion to coronoid tip: ~30 mm in adults (minimum ramus breadth 29-33 mm; docs/landmarks.md).
+  EXPECT_GT(s.condyle[1] - s.coronoid[1], 20.0);
+  EXPECT_LT(s.condyle[1] - s.coronoid[1], 40.0);
 }
 
 // The search finds a pose it did not start from: shift, flexion, turn, tilt

@@ -1206,6 +1206,33 @@ TEST(EndToEnd, CoronoidTipsTallerThanTheAtlasJoinTheirProcesses) {
   EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "pass");
 }
 
+// A condyle deeper than the posterior-border check allows, over the front of
+// its section, stays the condyle when it stands nearer the placed atlas's
+// condyle than its coronoid (docs/landmarks.md, step 3). On openkbp-train
+// pt_99 (fold 5: the held-out fold, which this rule was seen on; no
+// threshold was set on it) the left condyle lies 15.4 mm in front of the
+// border over 0.38 of its section: it was reported as the coronoid, Co_L
+// missing (no SAF score, QC warn), in the automatic and the contour run.
+TEST(EndToEnd, ADeepCondyleNearTheAtlasCondyleIsTheCondyle) {
+  const fs::path ct = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / "pt_99" / "ct.nii.gz";
+  if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
+  const fs::path out = temp_dir("pt_99_out");
+  std::string err;
+  ASSERT_EQ(run("run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o " + out.string(), &err), 0) << err;
+  const Value r = load(out / "results.json");
+  for (const char* l : {"Co_L", "Co_R", "Cr_L", "Cr_R"}) ASSERT_FALSE(r.at("landmarks").at(l).is_null()) << l;
+  // LPS y is posterior (this head is upright): each condyle ~36 mm behind its
+  // coronoid tip, the two condyles level front to back (within 5 mm).
+  const double behind_l = landmark(r, "Co_L")[1] - landmark(r, "Cr_L")[1], behind_r = landmark(r, "Co_R")[1] - landmark(r, "Cr_R")[1];
+  std::printf("pt_99: Co_L %.1f mm behind Cr_L, Co_R %.1f mm behind Cr_R\n", behind_l, behind_r);
+  EXPECT_GE(behind_l, 20.0);
+  EXPECT_GE(behind_r, 20.0);
+  EXPECT_NEAR(landmark(r, "Co_L")[1], landmark(r, "Co_R")[1], 5.0);
+  EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "pass");
+  EXPECT_TRUE(r.at("scores").at("saf").at("score").is_number());
+  fs::remove_all(out);
+}
+
 // An external mask is labelled in the head frame of the automatic run of the
 // same scan (docs/landmarks.md, "Head frame order"): the atlas is placed in
 // the CT for it too. On openkbp-train pt_183 (a tuning fold) the clinical
