@@ -1853,12 +1853,18 @@ static double calibration_offset(const Volume& ct, std::vector<std::string>& war
 // the mandible's marker for the zone's watershed.
 constexpr double kZoneMarkerP = 0.5;
 
-// Voxels no larger than this resolve the temporomandibular joint's space
-// (adult superior / anterior joint space 2.5 / 1.3 mm, Ikeda & Kawamura
-// 2009: two samples across the narrower gaps), so the watershed can cut the
-// zone there; coarser scans keep the zone as it is (openkbp-train folds 1-4
-// at ~4 mm: mean Dice 0.866 either way, worst 0.733 -> 0.719 with the cut).
-constexpr double kJointResolvingSpacingMm = 1.25;
+// Voxels no larger than this resolve the temporomandibular joint's superior
+// space (adult 2.5 mm, Ikeda & Kawamura 2009) as a valley below the bone
+// threshold, so the watershed can cut the zone there. A gap w wide sampled
+// at spacing s always has a voxel whose footprint is at most 1 - w / (2 s)
+// bone: 17 % at 1.5 mm, ~210 HU between cortex (~1000) and soft tissue
+// (~50), under the 250 HU threshold; 29 % (~320 HU) at 1.75 mm. Measured at
+// 1.5 mm (docs/segmentation.md, step 4): the Visible Human female Co 2.7 /
+// 4.4 -> 0.3 / 1.3 mm from its reference with the cut, 12 independent
+// phantoms Co 3.8-5.6 -> 0.6-2.1 mm. Coarser scans keep the zone
+// (openkbp-train at ~4 mm: mean Dice 0.866 either way, worst 0.733 -> 0.719
+// with the cut).
+constexpr double kJointResolvingSpacingMm = 1.5;
 
 // Body cross-section (voxels at or above kBodyHu + offset_hu) of each slice
 // across grid axis `axis`.
