@@ -188,7 +188,8 @@ double sigmoid_notch_height(const Atlas& atlas);
 // pieces (26-connected) of the mean mandible (p >= 0.5) above the sigmoid
 // notch, the posterior one the condyle; each top is the centroid of the
 // piece's voxels on its highest level. NaN coordinates when the halves never
-// split. Measured on the shipped atlas: 30 mm apart antero-posteriorly.
+// split. Measured on the shipped atlas: 25 mm apart antero-posteriorly, the
+// condyle's top 6 mm higher.
 struct ProcessTops {
   Vec3 condyle, coronoid;
 };

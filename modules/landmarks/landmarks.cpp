@@ -894,7 +894,7 @@ struct Processes {
 // Whether vertex v lies nearer, antero-posteriorly, to the placed atlas's
 // condyle top than to its coronoid top on side s (Options::atlas_condyles);
 // false without the atlas. The similarity fit places them within a few
-// millimetres; they stand ~30 mm apart (atlas::process_tops).
+// millimetres; they stand 25 mm apart (atlas::process_tops).
 bool nearer_the_atlas_condyle(const Frame& f, double s, std::size_t v, const Options& opt) {
   auto on_side = [&](const std::vector<Vec3>& tops) -> std::optional<double> {
     for (const Vec3& t : tops)

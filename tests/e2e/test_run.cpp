@@ -41,6 +41,12 @@ fs::path temp_dir(const std::string& name) {
   return p;
 }
 
+// The run arguments of an OpenKBP scan (HU + 1000) as the tests run it,
+// up to its output folder: append the folder (and any further options).
+std::string openkbp_run_args(const fs::path& ct) {
+  return "run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o ";
+}
+
 // Runs the binary; returns its exit code; stderr goes to err.
 int run(const std::string& args, std::string* err = nullptr) {
   const fs::path errf = temp_dir("stderr.txt");
@@ -922,7 +928,7 @@ TEST(EndToEnd, MentonLiesOnTheSurfaceOfACoarseRealScan) {
   if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("pt182");
   std::string err;
-  ASSERT_EQ(run("run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o " + out.string(), &err), 0) << err;
+  ASSERT_EQ(run(openkbp_run_args(ct) + out.string(), &err), 0) << err;
   const Value r = load(out / "results.json");
   const ms::Mesh mesh = ms::surface::read_vtp((out / "mandible.vtp").string());
   ASSERT_GT(mesh.faces.size(), 1000u);
@@ -951,7 +957,7 @@ TEST(EndToEnd, AMandibleMissingPartOfAHalfFailsQcOnTheHalves) {
   if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("pt47");
   std::string err;
-  ASSERT_EQ(run("run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o " + out.string(), &err), 8) << err;
+  ASSERT_EQ(run(openkbp_run_args(ct) + out.string(), &err), 8) << err;
   EXPECT_NE(err.find("one half of the mandible"), std::string::npos) << err;
   const Value r = load(out / "results.json");
   EXPECT_EQ(r.at("qc").at("status").get<std::string>(), "fail");
@@ -1034,7 +1040,7 @@ TEST(EndToEnd, CondyleTouchingTheRamusDiagonallyStaysOnTheSurface) {
   if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("pt172");
   std::string err;
-  ASSERT_EQ(run("run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o " + out.string(), &err), 0) << err;
+  ASSERT_EQ(run(openkbp_run_args(ct) + out.string(), &err), 0) << err;
   const Value r = load(out / "results.json");
   const ms::Mesh mesh = ms::surface::read_vtp((out / "mandible.vtp").string());
   const ms::Volume mask = ms::io::read_scan((out / "mandible_mask.nii.gz").string()).volume;
@@ -1193,7 +1199,7 @@ Value expect_two_processes_per_side(const std::string& pid) {
   const fs::path dir = fs::path(MANDISYM_SHARED_DATA) / "openkbp-train" / pid;
   const fs::path out = temp_dir(pid + "_out"), contour = temp_dir(pid + "_contour");
   std::string err;
-  const std::string common = "run " + (dir / "ct.nii.gz").string() + " --hu-offset -1000 -q --no-figures --no-cranial -o ";
+  const std::string common = openkbp_run_args(dir / "ct.nii.gz");
   if (run(common + out.string(), &err) != 0 || run(common + contour.string() + " --mask " + (dir / "mask.nii.gz").string(), &err) != 0) {
     ADD_FAILURE() << pid << ": " << err;
     return Value();
@@ -1273,7 +1279,7 @@ TEST(EndToEnd, ADeepCondyleNearTheAtlasCondyleIsTheCondyle) {
   if (!fs::exists(ct)) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("pt_99_out");
   std::string err;
-  ASSERT_EQ(run("run " + ct.string() + " --hu-offset -1000 -q --no-figures --no-cranial -o " + out.string(), &err), 0) << err;
+  ASSERT_EQ(run(openkbp_run_args(ct) + out.string(), &err), 0) << err;
   const Value r = load(out / "results.json");
   for (const char* l : {"Co_L", "Co_R", "Cr_L", "Cr_R"}) ASSERT_FALSE(r.at("landmarks").at(l).is_null()) << l;
   // LPS y is posterior (this head is upright): each condyle ~36 mm behind its
@@ -1300,7 +1306,7 @@ TEST(EndToEnd, ExternalMaskIsLabelledInTheAtlasHeadFrame) {
   if (!fs::exists(dir / "ct.nii.gz")) GTEST_SKIP() << "shared data not present";
   const fs::path out = temp_dir("pt_183_auto"), contour = temp_dir("pt_183_mask");
   std::string err;
-  const std::string common = "run " + (dir / "ct.nii.gz").string() + " --hu-offset -1000 -q --no-figures --no-cranial -o ";
+  const std::string common = openkbp_run_args(dir / "ct.nii.gz");
   ASSERT_EQ(run(common + out.string(), &err), 0) << err;
   ASSERT_EQ(run(common + contour.string() + " --mask " + (dir / "mask.nii.gz").string(), &err), 0) << err;
   const Value r = load(out / "results.json"), c = load(contour / "results.json");
